@@ -1,0 +1,1 @@
+"""FlyCrane model: system, kinematics, statics, feasibility and cost (no MAVLink, no HTTP)."""

@@ -1,0 +1,193 @@
+"""The ``flycrane`` command line.
+
+Subcommands of this package: ``statics`` and ``system``. Other packages add theirs through
+the ``flycrane.commands`` entry-point group (a callable taking the subparsers object), so
+this module never imports them and dependencies keep pointing one way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from collections.abc import Sequence
+from importlib.metadata import entry_points
+
+import numpy as np
+
+from flycrane.cable_system import CableSystem
+from flycrane.cost import CostForm, cost_from_report
+from flycrane.errors import FlyCraneError
+from flycrane.feasibility import violations
+from flycrane.kinematics import (
+    COORDINATES,
+    as_configurations,
+    drone_positions_from_configuration,
+)
+from flycrane.statics import StaticsReport, evaluate_statics
+from flycrane.system import SystemSpec, load_system, save_system
+
+#: The configuration the quick start evaluates: hovering 5 m up, level, alphas at 1 rad.
+DEFAULT_CONFIGURATION = (0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
+
+
+class CliError(FlyCraneError):
+    """A command-line usage problem (exit status 2)."""
+
+
+def _load_spec(path: str | None) -> SystemSpec:
+    return load_system(path) if path else SystemSpec()
+
+
+def statics_summary(
+    system: CableSystem, report: StaticsReport, form: CostForm, row: int = 0
+) -> dict:
+    """Plain-data statics of one configuration (what ``--json`` prints)."""
+    q = report.q[row]
+    drones = drone_positions_from_configuration(system, q)[0]
+    cost = float(cost_from_report(system, report, form)[row])
+    finite = lambda x: [float(v) if np.isfinite(v) else None for v in np.ravel(x)]  # noqa: E731
+    return {
+        "configuration": dict(zip(COORDINATES, map(float, q), strict=True)),
+        "feasible": bool(report.feasible[row]),
+        "singular": bool(report.singular[row]),
+        "cost": cost if np.isfinite(cost) else None,
+        "cost_form": str(form),
+        "cables": [
+            {
+                "cable": i + 1,
+                "nominal_tension": finite(report.nominal_tension[row, i])[0],
+                "half_width": finite(report.half_width[row, i])[0],
+                "tension_low": finite(report.tension_low[row, i])[0],
+                "tension_high": finite(report.tension_high[row, i])[0],
+                "tension_min": float(system.tension_min[i]),
+                "tension_max": float(system.tension_max[i]),
+                "slack_margin": finite(report.slack_margin[row, i])[0],
+                "overload_margin": finite(report.overload_margin[row, i])[0],
+            }
+            for i in range(6)
+        ],
+        "drones": [
+            {
+                "drone": k + 1,
+                "position": [float(v) for v in drones[k]],
+                "nominal_thrust": finite(report.nominal_thrust[row, k]),
+                "thrust_bound": finite(report.thrust_bound[row, k])[0],
+                "max_thrust": float(system.max_thrusts[k]),
+                "thrust_margin": finite(report.thrust_margin[row, k])[0],
+            }
+            for k in range(3)
+        ],
+        "violations": [
+            {"constraint": str(v.constraint), "index": v.index, "margin": finite(v.margin)[0],
+             "message": str(v)}
+            for v in violations(report, row)
+        ],  # fmt: skip
+    }
+
+
+def format_statics(summary: dict) -> str:
+    """A readable table of :func:`statics_summary`."""
+    q = summary["configuration"]
+    fmt = lambda v: "inf" if v is None else f"{v:9.3f}"  # noqa: E731
+    lines = [
+        "configuration: " + ", ".join(f"{k}={v:g}" for k, v in q.items()),
+        "",
+        "cable  f0 [N]     v [N]      t_lo [N]   t_hi [N]   range [N]        "
+        "slack mgn  overload mgn",
+    ]
+    for c in summary["cables"]:
+        lines.append(
+            f"{c['cable']:>5}  {fmt(c['nominal_tension'])}  {fmt(c['half_width'])}  "
+            f"{fmt(c['tension_low'])}  {fmt(c['tension_high'])}  "
+            f"[{c['tension_min']:g}, {c['tension_max']:g}]{'':<8}"
+            f"{fmt(c['slack_margin'])}  {fmt(c['overload_margin'])}"
+        )
+    lines += ["", "drone  position [m]                 |T0| [N]   m_k [N]    h_k [N]    margin [N]"]
+    for d in summary["drones"]:
+        t0 = d["nominal_thrust"]
+        norm = None if None in t0 else float(np.linalg.norm(t0))
+        pos = "(" + ", ".join(f"{v:7.3f}" for v in d["position"]) + ")"
+        lines.append(
+            f"{d['drone']:>5}  {pos:<28} {fmt(norm)}  {fmt(d['thrust_bound'])}  "
+            f"{d['max_thrust']:9.3f}  {fmt(d['thrust_margin'])}"
+        )
+    cost = summary["cost"]
+    lines += [
+        "",
+        f"cost ({summary['cost_form']}): {'inf' if cost is None else f'{cost:.6g}'}",
+        f"feasible: {'yes' if summary['feasible'] else 'no'}",
+    ]
+    lines += [f"  violated: {v['message']}" for v in summary["violations"]]
+    return "\n".join(lines)
+
+
+def _cmd_statics(args: argparse.Namespace) -> int:
+    system = CableSystem.from_spec(_load_spec(args.system))
+    q = as_configurations(args.q)
+    report = evaluate_statics(system, q)
+    summary = statics_summary(system, report, CostForm(args.cost_form))
+    print(json.dumps(summary, indent=2) if args.json else format_statics(summary))
+    return 0
+
+
+def _cmd_system(args: argparse.Namespace) -> int:
+    spec = _load_spec(args.system)
+    if args.write:
+        save_system(spec, args.write)
+        print(f"wrote {args.write}")
+    else:
+        print(json.dumps(spec.model_dump(mode="json", by_alias=True, exclude_none=True), indent=2))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="flycrane",
+        description="FlyCrane: statics, planning and MAVLink missions for a 3-drone aerial crane",
+    )
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    statics = sub.add_parser("statics", help="tensions, thrusts, margins and cost at q")
+    statics.add_argument("--system", metavar="FILE", help="system .toml/.json (default: benchmark)")
+    statics.add_argument(
+        "--q", nargs=9, type=float, metavar="V", default=list(DEFAULT_CONFIGURATION),
+        help="x y z [m] phi theta sigma [rad] alpha1 alpha2 alpha3 [rad] "
+        "(default: 0 0 5 0 0 0 1 1 1)",
+    )  # fmt: skip
+    statics.add_argument("--cost-form", choices=[f.value for f in CostForm], default="normalized")
+    statics.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    statics.set_defaults(handler=_cmd_statics)
+
+    system = sub.add_parser("system", help="print a system description, or write it to a file")
+    system.add_argument("--system", metavar="FILE", help="system to read (default: benchmark)")
+    system.add_argument("--write", metavar="FILE", help="write it as .toml or .json")
+    system.set_defaults(handler=_cmd_system)
+
+    for entry in entry_points(group="flycrane.commands"):
+        entry.load()(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        return int(args.handler(args))
+    except FlyCraneError as error:
+        print(f"flycrane {args.command}: error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:
+        print(f"flycrane {args.command}: error: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
+

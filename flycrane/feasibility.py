@@ -1,0 +1,89 @@
+"""Feasibility of configurations: every violated constraint, named, with its margin.
+
+A configuration is feasible when J is non-singular, every cable's tension range over the
+perturbation ellipsoid lies inside its rating (eq. 5-6), and every drone's worst-case thrust
+is below its maximum (eq. 7) -- design.md section 5.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+
+from flycrane.errors import FlyCraneError
+from flycrane.statics import StaticsReport
+
+
+class Constraint(StrEnum):
+    """Kinds of statics constraint."""
+
+    SINGULAR = "singular"  #: screw Jacobian singular: the platform is not held
+    SLACK = "slack"  #: a cable may go slack (t_lo <= f_lo)
+    OVERLOAD = "overload"  #: a cable may be overloaded (t_hi >= f_hi)
+    THRUST = "thrust"  #: a drone may need more than its maximum thrust (m_k >= h_k)
+
+
+@dataclass(frozen=True)
+class Violation:
+    """One violated constraint of one configuration.
+
+    ``index`` is the 1-based cable (slack, overload) or drone (thrust) number, 0 for
+    singular. ``value`` is the constrained quantity (t_lo, t_hi or m_k in N), ``limit`` its
+    bound, and ``margin`` the signed distance to it (<= 0 means violated), in N.
+    """
+
+    constraint: Constraint
+    index: int
+    value: float
+    limit: float
+    margin: float
+
+    def __str__(self) -> str:
+        if self.constraint is Constraint.SINGULAR:
+            return "screw Jacobian is singular (the cables do not hold the platform)"
+        what = {
+            Constraint.SLACK: f"cable {self.index}: lowest tension {self.value:.4g} N <= "
+            f"minimum {self.limit:.4g} N",
+            Constraint.OVERLOAD: f"cable {self.index}: highest tension {self.value:.4g} N >= "
+            f"maximum {self.limit:.4g} N",
+            Constraint.THRUST: f"drone {self.index}: worst-case thrust {self.value:.4g} N >= "
+            f"maximum {self.limit:.4g} N",
+        }[self.constraint]
+        return f"{what} (margin {self.margin:.4g} N)"
+
+
+def violations(report: StaticsReport, row: int = 0) -> list[Violation]:
+    """Every violated constraint of configuration ``row`` of a report (empty if feasible)."""
+    if report.singular[row]:
+        return [Violation(Constraint.SINGULAR, 0, np.inf, np.inf, -np.inf)]
+    found: list[Violation] = []
+    for i in np.flatnonzero(report.slack_margin[row] <= 0):
+        low = report.tension_low[row, i]
+        found.append(
+            Violation(Constraint.SLACK, i + 1, low, low - report.slack_margin[row, i],
+                      report.slack_margin[row, i])
+        )  # fmt: skip
+    for i in np.flatnonzero(report.overload_margin[row] <= 0):
+        high = report.tension_high[row, i]
+        found.append(
+            Violation(Constraint.OVERLOAD, i + 1, high, high + report.overload_margin[row, i],
+                      report.overload_margin[row, i])
+        )  # fmt: skip
+    for k in np.flatnonzero(report.thrust_margin[row] <= 0):
+        bound = report.thrust_bound[row, k]
+        found.append(
+            Violation(Constraint.THRUST, k + 1, bound, bound + report.thrust_margin[row, k],
+                      report.thrust_margin[row, k])
+        )  # fmt: skip
+    return found
+
+
+class InfeasibleConfigurationError(FlyCraneError):
+    """A configuration that must be feasible (a start, a goal, a waypoint) is not."""
+
+    def __init__(self, what: str, found: list[Violation]) -> None:
+        self.what = what
+        self.violations = tuple(found)
+        super().__init__(f"{what} is infeasible: " + "; ".join(str(v) for v in found))

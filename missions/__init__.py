@@ -1,0 +1,1 @@
+"""FlyCrane missions: drone tracks, MAVLink missions, file formats, logs and uploads."""

@@ -1,0 +1,1 @@
+"""FlyCrane mission service: the HTTP API, its storage and background jobs."""

@@ -1,0 +1,42 @@
+"""Shared fixtures: the default benchmark system and random feasible configurations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import settings
+
+from flycrane.cable_system import CableSystem
+from flycrane.statics import evaluate_statics
+
+# Timing is for benchmarks, not tests: the first call of a compiled kernel loads it from the
+# numba cache, which would trip hypothesis' per-example deadline.
+settings.register_profile("flycrane", deadline=None, print_blob=True)
+settings.load_profile("flycrane")
+
+
+@pytest.fixture(scope="session")
+def system() -> CableSystem:
+    return CableSystem.from_spec()
+
+
+def random_configurations(rng: np.random.Generator, n: int, max_tilt: float = 0.6) -> np.ndarray:
+    """Configurations around the hover pose: any position and heading, tilt and alphas spread."""
+    q = np.empty((n, 9))
+    q[:, :3] = rng.uniform([-20, -20, 2], [20, 20, 30], (n, 3))
+    q[:, 3] = rng.uniform(-np.pi, np.pi, n)
+    q[:, 4] = rng.uniform(0.0, max_tilt, n)
+    q[:, 5] = rng.uniform(-np.pi, np.pi, n)
+    q[:, 6:] = rng.uniform(0.3, 1.8, (n, 3))
+    return q
+
+
+def random_feasible_configurations(
+    system: CableSystem, rng: np.random.Generator, n: int
+) -> np.ndarray:
+    """n feasible configurations by rejection sampling (feasibility by the numpy reference)."""
+    found: list[np.ndarray] = []
+    while sum(len(f) for f in found) < n:
+        q = random_configurations(rng, 4 * n)
+        found.append(q[evaluate_statics(system, q).feasible])
+    return np.concatenate(found)[:n]

@@ -1,0 +1,50 @@
+"""The ``flycrane`` command line: tables, JSON, and clean errors with a non-zero exit."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from flycrane.cli import main
+
+
+def test_statics_json_on_defaults(capsys):
+    assert main(["statics", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["feasible"] is True
+    assert summary["cables"][0]["nominal_tension"] == pytest.approx(3.11, abs=0.01)
+    assert summary["drones"][2]["thrust_bound"] == pytest.approx(17.14, abs=0.01)
+    assert summary["violations"] == []
+
+
+def test_statics_table_names_violations(capsys):
+    assert main(["statics", "--q", "0", "0", "5", "0", "0", "0", "1.4", "1.4", "1.4"]) == 0
+    out = capsys.readouterr().out
+    assert "feasible: no" in out
+    assert "cable 1: lowest tension" in out
+    assert "cost (normalized): inf" in out
+
+
+def test_singular_configuration_prints_without_nan(capsys):
+    assert main(["statics", "--json", "--q", "0", "0", "5", "0", "0", "0", "0", "0", "0"]) == 0
+    out = capsys.readouterr().out
+    assert "NaN" not in out and "Infinity" not in out
+    assert json.loads(out)["singular"] is True
+
+
+def test_bad_input_is_a_message_and_exit_status_2(tmp_path, capsys):
+    assert main(["statics", "--q", "0", "0", "5", "0", "-1", "0", "1", "1", "1"]) == 2
+    assert "q.theta" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    bad.write_text("platform_mass = -1\n", encoding="utf-8")
+    assert main(["statics", "--system", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "platform_mass" in err and "Traceback" not in err
+
+
+def test_system_file_written_by_the_cli_loads_back(tmp_path, capsys):
+    path = tmp_path / "system.toml"
+    assert main(["system", "--write", str(path)]) == 0
+    assert main(["statics", "--system", str(path), "--json"]) == 0
+    assert "wrote" in capsys.readouterr().out
