@@ -1,0 +1,1 @@
+"""Motion planning for the FlyCrane: state space, validity, objective, planners, smoothing."""

@@ -1,0 +1,89 @@
+"""Random shortcut smoothing (Geraerts & Overmars, IJRR 26(8), 2007), optionally cost-aware.
+
+Each attempt picks two random points along the path (uniform in path length), joins them
+by the straight local path, and keeps the shortcut if its motion is valid and -- for
+cost-aware planners -- it does not increase the mechanical work of the replaced stretch
+(both measured at the metrics resolution). Paths only get shorter; with the cost-aware
+rule they never climb more.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from flycrane.errors import FieldProblem, InputError
+from flycrane.metrics import METRICS_RESOLUTION, mechanical_work, resample_path
+from flycrane.planning.result import TerminationCondition
+from flycrane.planning.state_space import ConfigurationSpace
+from flycrane.planning.trrt import Validity
+
+
+@dataclass(frozen=True)
+class ShortcutConfig:
+    """Parameters of random shortcut smoothing."""
+
+    attempts: int = 100  #: shortcut attempts
+    cost_aware: bool = True  #: refuse shortcuts that increase mechanical work
+    resolution: float = METRICS_RESOLUTION  #: sampling step for the work comparison
+
+    def __post_init__(self) -> None:
+        problems = []
+        if self.attempts < 0:
+            problems.append(FieldProblem("attempts", "must be >= 0"))
+        if self.resolution <= 0:
+            problems.append(FieldProblem("resolution", "must be > 0"))
+        if problems:
+            raise InputError(problems, "smoothing options")
+
+
+def _point_at(path: NDArray, cumulative: NDArray, space: ConfigurationSpace, s: float):
+    """(segment index, configuration) at arc length s."""
+    segment = int(np.clip(np.searchsorted(cumulative, s, side="right") - 1, 0, len(path) - 2))
+    span = cumulative[segment + 1] - cumulative[segment]
+    t = 0.0 if span <= 0 else (s - cumulative[segment]) / span
+    return segment, space.interpolate(path[segment], path[segment + 1], [t])[0]
+
+
+def shortcut_path(
+    path: NDArray[np.float64],
+    space: ConfigurationSpace,
+    validity: Validity,
+    config: ShortcutConfig,
+    seed: int = 0,
+    termination: TerminationCondition | None = None,
+) -> NDArray[np.float64]:
+    """The path after ``config.attempts`` random shortcut attempts, shape (M', 9)."""
+    path = np.array(path, dtype=float)
+    rng = np.random.default_rng(seed)
+
+    def work(stretch: NDArray) -> float:
+        return mechanical_work(validity.cost(resample_path(stretch, space, config.resolution)))
+
+    for _ in range(config.attempts):
+        if len(path) < 3 or (termination is not None and termination() is not None):
+            break
+        cumulative = np.concatenate([[0.0], np.cumsum(space.distance(path[:-1], path[1:]))])
+        s_a, s_b = np.sort(rng.uniform(0.0, cumulative[-1], 2))
+        i, q_a = _point_at(path, cumulative, space, s_a)
+        j, q_b = _point_at(path, cumulative, space, s_b)
+        if i == j:
+            continue  # both on one straight segment: nothing to shorten
+        if not validity.motion_is_valid(q_a, q_b):
+            continue
+        if config.cost_aware:
+            old = np.concatenate([q_a[None], path[i + 1 : j + 1], q_b[None]])
+            if work(np.stack([q_a, q_b])) > work(old):
+                continue
+        path = np.concatenate([path[: i + 1], q_a[None], q_b[None], path[j + 1 :]])
+    return _without_repeats(path, space)
+
+
+def _without_repeats(path: NDArray[np.float64], space: ConfigurationSpace) -> NDArray:
+    """Drop consecutive duplicate configurations (a shortcut point on a waypoint)."""
+    if len(path) < 2:
+        return path
+    keep = np.concatenate([[True], space.distance(path[:-1], path[1:]) > 1e-12])
+    return path[keep]
