@@ -1,0 +1,104 @@
+"""Planner selection and the planning run: plan, smooth, measure.
+
+:class:`PlannerOptions` is the user-facing schema (tasks, CLI, benchmark); :func:`plan`
+runs the chosen planner, smooths its path with random shortcuts (cost-aware for the
+cost-aware planners) and computes the path metrics.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field
+
+from flycrane.metrics import PathMetrics, path_metrics
+from flycrane.planning.ompl_peers import OmplPlanner
+from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
+from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
+from flycrane.planning.state_space import ConfigurationSpace
+from flycrane.planning.trrt import TRRT, TRRTConfig, Validity
+
+Algorithm = Literal["trrt", "rrt", "ompl-trrt", "ompl-rrt"]
+#: Planners that minimize the cost (their shortcuts must not add mechanical work).
+COST_AWARE: frozenset[str] = frozenset({"trrt", "ompl-trrt"})
+
+
+class PlannerOptions(BaseModel):
+    """Which planner, with which parameters (defaults: the paper's T-RRT)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    algorithm: Algorithm = "trrt"
+    seed: int = Field(0, ge=0, description="random seed: same seed, same path")
+    time_budget: float = Field(60.0, gt=0, le=86_400, description="planning time limit [s]")
+    step: float = Field(1.0, gt=0, description="extension step delta [state-space distance]")
+    goal_bias: float = Field(0.05, ge=0, le=1)
+    init_temperature: float | None = Field(None, gt=0, description="None: 1e-6 c(q_start)")
+    temperature_rate: float = Field(0.1, ge=0, le=1, description="T_rate")
+    refinement_ratio: float = Field(0.1, ge=0, le=1, description="rho")
+    cost_threshold: float | None = Field(None, gt=0, description="c_max; None: no threshold")
+    smoothing_attempts: int = Field(100, ge=0, le=100_000, description="random shortcuts")
+
+    def trrt_config(self) -> TRRTConfig:
+        config = TRRTConfig(
+            step=self.step,
+            goal_bias=self.goal_bias,
+            init_temperature=self.init_temperature,
+            temperature_rate=self.temperature_rate,
+            refinement_ratio=self.refinement_ratio,
+            cost_threshold=np.inf if self.cost_threshold is None else self.cost_threshold,
+        )
+        if self.algorithm in COST_AWARE:
+            return config
+        return TRRTConfig.rrt(step=self.step, goal_bias=self.goal_bias)
+
+
+def make_planner(space: ConfigurationSpace, validity: Validity, options: PlannerOptions):
+    """The planner object for ``options.algorithm`` (each has ``solve`` and ``name``)."""
+    config = options.trrt_config()
+    if options.algorithm.startswith("ompl-"):
+        return OmplPlanner(space, validity, options.algorithm.removeprefix("ompl-"), config)
+    return TRRT(space, validity, config, name=options.algorithm)
+
+
+@dataclass(frozen=True)
+class PlanningOutcome:
+    """A planner's result, its smoothed path and the metrics of that path."""
+
+    result: PlannerResult
+    path: NDArray[np.float64]  #: smoothed path (M, 9); empty unless solved
+    metrics: PathMetrics | None  #: of the smoothed path
+    smoothing_time: float  #: seconds spent smoothing
+
+
+def plan(
+    space: ConfigurationSpace,
+    validity: Validity,
+    start: NDArray[np.float64],
+    goal: NDArray[np.float64],
+    options: PlannerOptions,
+    should_stop: Callable[[], bool] | None = None,
+    progress: Callable[[PlanningProgress], None] | None = None,
+) -> PlanningOutcome:
+    """Plan within ``options.time_budget``, then smooth and measure the path."""
+    termination = TerminationCondition(options.time_budget, should_stop)
+    planner = make_planner(space, validity, options)
+    result = planner.solve(start, goal, termination, seed=options.seed, progress=progress)
+    if not result.status.solved:
+        return PlanningOutcome(result, np.empty((0, 9)), None, 0.0)
+    clock = time.perf_counter()
+    smooth = shortcut_path(
+        result.path,
+        space,
+        validity,
+        ShortcutConfig(options.smoothing_attempts, cost_aware=options.algorithm in COST_AWARE),
+        seed=options.seed,
+        termination=TerminationCondition(float("inf"), should_stop),
+    )
+    elapsed = time.perf_counter() - clock
+    return PlanningOutcome(result, smooth, path_metrics(smooth, space, validity.cost), elapsed)
