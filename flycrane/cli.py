@@ -17,15 +17,11 @@ from importlib.metadata import entry_points
 import numpy as np
 
 from flycrane.cable_system import CableSystem
-from flycrane.cost import CostForm, cost_from_report
+from flycrane.cost import CostForm
 from flycrane.errors import FlyCraneError
-from flycrane.feasibility import violations
-from flycrane.kinematics import (
-    COORDINATES,
-    as_configurations,
-    drone_positions_from_configuration,
-)
-from flycrane.statics import StaticsReport, evaluate_statics
+from flycrane.kinematics import as_configurations
+from flycrane.statics import evaluate_statics
+from flycrane.summary import statics_summary
 from flycrane.system import SystemSpec, load_system, save_system
 
 #: The configuration the quick start evaluates: hovering 5 m up, level, alphas at 1 rad.
@@ -38,53 +34,6 @@ class CliError(FlyCraneError):
 
 def _load_spec(path: str | None) -> SystemSpec:
     return load_system(path) if path else SystemSpec()
-
-
-def statics_summary(
-    system: CableSystem, report: StaticsReport, form: CostForm, row: int = 0
-) -> dict:
-    """Plain-data statics of one configuration (what ``--json`` prints)."""
-    q = report.q[row]
-    drones = drone_positions_from_configuration(system, q)[0]
-    cost = float(cost_from_report(system, report, form)[row])
-    finite = lambda x: [float(v) if np.isfinite(v) else None for v in np.ravel(x)]  # noqa: E731
-    return {
-        "configuration": dict(zip(COORDINATES, map(float, q), strict=True)),
-        "feasible": bool(report.feasible[row]),
-        "singular": bool(report.singular[row]),
-        "cost": cost if np.isfinite(cost) else None,
-        "cost_form": str(form),
-        "cables": [
-            {
-                "cable": i + 1,
-                "nominal_tension": finite(report.nominal_tension[row, i])[0],
-                "half_width": finite(report.half_width[row, i])[0],
-                "tension_low": finite(report.tension_low[row, i])[0],
-                "tension_high": finite(report.tension_high[row, i])[0],
-                "tension_min": float(system.tension_min[i]),
-                "tension_max": float(system.tension_max[i]),
-                "slack_margin": finite(report.slack_margin[row, i])[0],
-                "overload_margin": finite(report.overload_margin[row, i])[0],
-            }
-            for i in range(6)
-        ],
-        "drones": [
-            {
-                "drone": k + 1,
-                "position": [float(v) for v in drones[k]],
-                "nominal_thrust": finite(report.nominal_thrust[row, k]),
-                "thrust_bound": finite(report.thrust_bound[row, k])[0],
-                "max_thrust": float(system.max_thrusts[k]),
-                "thrust_margin": finite(report.thrust_margin[row, k])[0],
-            }
-            for k in range(3)
-        ],
-        "violations": [
-            {"constraint": str(v.constraint), "index": v.index, "margin": finite(v.margin)[0],
-             "message": str(v)}
-            for v in violations(report, row)
-        ],  # fmt: skip
-    }
 
 
 def format_statics(summary: dict) -> str:
