@@ -250,6 +250,26 @@ class SystemSpec(_Frozen):
         return np.array(self.tension_min), np.array(self.tension_max)
 
 
+#: Named systems users can ask for instead of a full description.
+SYSTEM_PRESETS: dict[str, SystemSpec] = {"benchmark": SystemSpec()}
+
+
+def system_preset(name: str) -> SystemSpec:
+    """The preset ``name``, or a :class:`SystemSpecError` listing the known ones."""
+    try:
+        return SYSTEM_PRESETS[name]
+    except KeyError:
+        known = ", ".join(sorted(SYSTEM_PRESETS))
+        raise SystemSpecError(
+            [FieldProblem("system", f"unknown preset {name!r}; known: {known}")]
+        ) from None
+
+
+#: Values of discriminator fields (``kind``): pydantic puts the chosen union branch in an
+#: error's location, which says nothing to the user that the field path does not.
+UNION_TAGS = frozenset({"octahedral", "generic", "box", "cylinder", "sphere", "mesh"})
+
+
 def problems_from_validation_error(error: ValidationError) -> list[FieldProblem]:
     """Field-named problems from a pydantic error (locations joined as ``a.b[2]``)."""
     problems = []
@@ -258,8 +278,8 @@ def problems_from_validation_error(error: ValidationError) -> list[FieldProblem]
         for loc in item["loc"]:
             if isinstance(loc, int):
                 parts.append(f"[{loc}]")
-            elif loc in ("octahedral", "generic"):
-                continue  # the geometry's discriminator tag adds nothing for the user
+            elif loc in UNION_TAGS:
+                continue
             else:
                 parts.append(("." if parts else "") + str(loc).rstrip("_"))
         message = str(item["msg"]).removeprefix("Value error, ")

@@ -1,0 +1,139 @@
+"""The planner's validity checker: sampling bounds, statics feasibility and collisions.
+
+OMPL's StateValidityChecker and MotionValidator roles for the FlyCrane. A configuration is
+valid when it lies in the scene's sampling bounds, its cost is finite (wrench- and
+thrust-feasible, J non-singular) and no body collides. Statics are checked first (a
+compiled kernel, ~1 us per configuration); collisions only for the feasible rest.
+
+Motions are checked along the planner's local path (:mod:`flycrane.planning.interpolation`)
+at ``resolution`` in state-space distance (default 0.05: about 5 cm of drone travel,
+against 0.3 m drone spheres and obstacles at least centimetres thick), both end points
+included, stopping at the first invalid configuration.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from flycrane.cable_system import CableSystem
+from flycrane.collision import CollisionChecker, Contact
+from flycrane.cost import configuration_cost
+from flycrane.errors import FlyCraneError
+from flycrane.feasibility import Violation, violations
+from flycrane.kinematics import COORDINATES, as_configurations
+from flycrane.planning.state_space import ConfigurationSpace
+from flycrane.scene import SceneSpec
+from flycrane.statics import evaluate_statics
+
+#: Default motion-check step [state-space distance] (module docstring).
+MOTION_RESOLUTION = 0.05
+
+
+@dataclass(frozen=True)
+class InvalidReason:
+    """Why one configuration is invalid: bounds, statics and contacts, all of them."""
+
+    out_of_bounds: tuple[str, ...] = ()
+    violations: tuple[Violation, ...] = ()
+    contacts: tuple[Contact, ...] = field(default_factory=tuple)
+
+    @property
+    def valid(self) -> bool:
+        return not (self.out_of_bounds or self.violations or self.contacts)
+
+    def __str__(self) -> str:
+        parts = [f"outside the bounds: {b}" for b in self.out_of_bounds]
+        parts += [str(v) for v in self.violations]
+        parts += [str(c) for c in self.contacts]
+        return "; ".join(parts) or "valid"
+
+
+class InvalidConfigurationError(FlyCraneError):
+    """A configuration that must be valid (``what``: "start", "goal", ...) is not."""
+
+    def __init__(self, what: str, reason: InvalidReason) -> None:
+        self.what, self.reason = what, reason
+        super().__init__(f"{what} is invalid: {reason}")
+
+
+class ValidityChecker:
+    """Validity and cost of configurations of one system in one scene."""
+
+    def __init__(
+        self,
+        system: CableSystem,
+        scene: SceneSpec,
+        space: ConfigurationSpace,
+        base_dir: Path | None = None,
+        resolution: float = MOTION_RESOLUTION,
+    ) -> None:
+        self.system, self.scene, self.space, self.base_dir = system, scene, space, base_dir
+        self.resolution = resolution
+        self.collision = CollisionChecker(system, scene, base_dir)
+
+    def __reduce__(self):
+        # fcl objects do not pickle; worker processes rebuild the checker (milliseconds).
+        return (
+            ValidityChecker,
+            (self.system, self.scene, self.space, self.base_dir, self.resolution),
+        )
+
+    def cost(self, q: ArrayLike) -> NDArray[np.float64]:
+        """c(q) per configuration, +inf where infeasible or outside the bounds (N,)."""
+        q = as_configurations(q)
+        cost = configuration_cost(self.system, q)
+        cost[~self.space.contains(q)] = np.inf
+        return cost
+
+    def is_valid(self, q: ArrayLike) -> NDArray[np.bool_]:
+        """In bounds, feasible and collision-free, per configuration (N,)."""
+        q = as_configurations(q)
+        valid = np.isfinite(self.cost(q))
+        if valid.any():
+            valid[valid] = self.collision.collision_free(q[valid])
+        return valid
+
+    def motion_is_valid(self, q_from: ArrayLike, q_to: ArrayLike) -> bool:
+        """Every configuration of the local path q_from -> q_to is valid."""
+        steps = max(1, int(np.ceil(self.space.distance(q_from, q_to)[0] / self.resolution)))
+        path = self.space.interpolate(q_from, q_to, np.linspace(0.0, 1.0, steps + 1))
+        if not np.all(np.isfinite(self.cost(path))):
+            return False
+        return self.collision.first_collision(path) is None
+
+    def explain(self, q: ArrayLike) -> InvalidReason:
+        """Every reason why the configuration (9,) is invalid (empty if valid)."""
+        q = as_configurations(q)[:1]
+        space = self.space
+        low, high = np.array(space.position_low), np.array(space.position_high)
+        outside = [
+            f"{COORDINATES[a]} = {q[0, a]:.4g} not in [{low[a]:.4g}, {high[a]:.4g}]"
+            for a in range(3)
+            if not low[a] <= q[0, a] <= high[a]
+        ]
+        if q[0, 4] > space.max_tilt:
+            outside.append(f"theta = {q[0, 4]:.4g} above max_tilt {space.max_tilt:.4g}")
+        outside += [
+            f"alpha{k + 1} = {q[0, 6 + k]:.4g} not in [{space.alpha_low:.4g}, "
+            f"{space.alpha_high:.4g}]"
+            for k in range(3)
+            if not space.alpha_low <= q[0, 6 + k] <= space.alpha_high
+        ]
+        return InvalidReason(
+            tuple(outside),
+            tuple(violations(evaluate_statics(self.system, q))),
+            tuple(self.collision.contacts(q[0])),
+        )
+
+    def describe_invalid(self, q: ArrayLike) -> str:
+        return str(self.explain(q))
+
+    def require_valid(self, q: ArrayLike, what: str) -> None:
+        """Raise :class:`InvalidConfigurationError` naming every reason if q is invalid."""
+        reason = self.explain(q)
+        if not reason.valid:
+            raise InvalidConfigurationError(what, reason)

@@ -1,0 +1,216 @@
+"""Scenes: obstacles, the ground, the payload, sampling bounds, start and goal (design.md 6-7).
+
+A :class:`SceneSpec` is plain data (pydantic, frozen); scene files are TOML in
+``flycrane/scenes/`` and load by name (``load_scene("rescue")``) or by path. Orientations
+of shapes use the project's tilt-and-torsion angles ``(phi, theta, sigma)`` (design.md s.3;
+a yaw alone is ``(0, 0, yaw)``). World shapes are in the world frame, payload shapes in the
+platform frame. Meshes come from an STL/OBJ file (resolved relative to the scene file; not
+allowed in scenes sent over HTTP) or inline vertices and faces.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from flycrane.errors import FieldProblem, InputError
+from flycrane.system import SystemSpec, problems_from_validation_error
+
+Vec3 = tuple[float, float, float]
+Positive = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
+Configuration = tuple[float, float, float, float, float, float, float, float, float]
+
+#: Where the scenes shipped with the package live.
+SCENES_DIR = Path(__file__).parent / "scenes"
+
+
+class SceneError(InputError):
+    """A scene description is invalid or cannot be found; names the field and the reason."""
+
+
+class _Shape(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    name: str = Field("", description="used in collision reports; default: kind and index")
+    center: Vec3 = (0.0, 0.0, 0.0)
+    rotation: Vec3 = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
+
+    @field_validator("center", "rotation")
+    @classmethod
+    def _finite(cls, value: Vec3) -> Vec3:
+        if not all(math.isfinite(v) for v in value):
+            raise ValueError("must be finite")
+        return value
+
+
+class Box(_Shape):
+    kind: Literal["box"] = "box"
+    size: tuple[Positive, Positive, Positive] = Field(description="edge lengths x, y, z [m]")
+
+
+class Cylinder(_Shape):
+    kind: Literal["cylinder"] = "cylinder"
+    radius: Positive
+    height: Positive = Field(description="along the shape's own z axis [m]")
+
+
+class Sphere(_Shape):
+    kind: Literal["sphere"] = "sphere"
+    radius: Positive
+
+
+class Mesh(_Shape):
+    kind: Literal["mesh"] = "mesh"
+    file: str | None = Field(None, description="STL/OBJ path, relative to the scene file")
+    vertices: tuple[Vec3, ...] | None = None
+    faces: tuple[tuple[int, int, int], ...] | None = None
+    scale: Positive = 1.0
+
+    @model_validator(mode="after")
+    def _one_source(self) -> Mesh:
+        inline = self.vertices is not None or self.faces is not None
+        if (self.file is None) == (not inline):
+            raise ValueError("give either file, or vertices and faces")
+        if inline:
+            if not self.vertices or not self.faces:
+                raise ValueError("vertices and faces must both be non-empty")
+            top = len(self.vertices)
+            if any(not 0 <= i < top for face in self.faces for i in face):
+                raise ValueError(f"faces index vertices 0..{top - 1} only")
+        return self
+
+    def triangles(self, base_dir: Path | None) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices (V, 3) scaled, faces (F, 3)) from the file or the inline data."""
+        if self.file is None:
+            return self.scale * np.asarray(self.vertices, float), np.asarray(self.faces, int)
+        import trimesh  # noqa: PLC0415 -- only scenes with mesh files need it
+
+        path = Path(self.file) if base_dir is None else base_dir / self.file
+        try:
+            mesh = trimesh.load(path, force="mesh")
+        except (OSError, ValueError) as error:
+            raise SceneError([FieldProblem("mesh.file", f"{path}: {error}")]) from None
+        return self.scale * np.asarray(mesh.vertices, float), np.asarray(mesh.faces, int)
+
+
+Shape = Annotated[Box | Cylinder | Sphere | Mesh, Field(discriminator="kind")]
+
+
+class Payload(BaseModel):
+    """What the platform carries: shapes in the platform frame, and the mass properties."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    shapes: tuple[Shape, ...] = ()
+    mass: Positive | None = Field(None, description="platform plus payload [kg]; None: system's")
+    com_offset: Vec3 | None = Field(None, description="c' [m], platform frame; None: system's")
+
+
+class Bounds(BaseModel):
+    """Where the planner samples: a box for P, a largest tilt, an alpha range."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    position_low: Vec3
+    position_high: Vec3
+    max_tilt: float = Field(0.6, gt=0.0, le=math.pi, description="largest theta [rad]")
+    alpha_low: float = Field(0.3, description="[rad]")
+    alpha_high: float = Field(1.8, description="[rad]")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Bounds:
+        low, high = np.array(self.position_low), np.array(self.position_high)
+        axes = [a for a, lo, hi in zip("xyz", low, high, strict=True) if not lo < hi]
+        if axes:
+            raise ValueError(f"position_low must be below position_high on {', '.join(axes)}")
+        if not 0.0 <= self.alpha_low < self.alpha_high <= math.pi:
+            raise ValueError("need 0 <= alpha_low < alpha_high <= pi")
+        return self
+
+
+class CollisionSettings(BaseModel):
+    """Sizes of the robot's collision bodies (design.md s.6 defaults)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    cable_radius: Positive = 0.01
+    drone_radius: Positive = 0.3
+    min_drone_separation: Positive = Field(1.0, description="drone centre distance [m]")
+    platform_thickness: Positive = Field(0.02, description="thin prism through B_i [m]")
+    cable_clearance_at_platform: float = Field(
+        0.05, ge=0.0, description="cable length near b_i not checked against the payload [m]"
+    )
+
+
+class SceneSpec(BaseModel):
+    """A complete planning scene."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    name: str = "scene"
+    description: str = ""
+    obstacles: tuple[Shape, ...] = ()
+    ground: bool = Field(True, description="the plane z = 0 is an obstacle")
+    payload: Payload = Field(default_factory=Payload)
+    bounds: Bounds
+    start: Configuration
+    goal: Configuration
+    collision: CollisionSettings = Field(default_factory=CollisionSettings)
+
+    @field_validator("start", "goal")
+    @classmethod
+    def _finite_configuration(cls, value: Configuration) -> Configuration:
+        if not all(math.isfinite(v) for v in value):
+            raise ValueError("must be 9 finite numbers")
+        if not 0.0 <= value[4] <= math.pi:
+            raise ValueError(f"tilt theta = {value[4]} not in [0, pi]")
+        return value
+
+    def system_spec(self, base: SystemSpec | None = None) -> SystemSpec:
+        """The system carrying this scene's payload (its mass and centre of mass, if set)."""
+        base = base or SystemSpec()
+        update = {}
+        if self.payload.mass is not None:
+            update["platform_mass"] = self.payload.mass
+        if self.payload.com_offset is not None:
+            update["com_offset"] = self.payload.com_offset
+        return SystemSpec.model_validate({**base.model_dump(by_alias=True), **update})
+
+
+def scene_from_dict(data: dict, source: str | None = None) -> SceneSpec:
+    """Validate a mapping as a scene, raising :class:`SceneError` naming the field."""
+    try:
+        return SceneSpec.model_validate(data)
+    except ValidationError as error:
+        raise SceneError(problems_from_validation_error(error), source) from None
+
+
+def list_scenes() -> list[str]:
+    """Names of the scenes shipped with the package."""
+    return sorted(p.stem for p in SCENES_DIR.glob("*.toml"))
+
+
+def scene_path(name_or_path: str | Path) -> Path:
+    """The file of a scene given by name (shipped) or by path."""
+    path = Path(name_or_path)
+    if path.suffix == "" and (SCENES_DIR / f"{path.name}.toml").exists():
+        return SCENES_DIR / f"{path.name}.toml"
+    if not path.exists():
+        known = ", ".join(list_scenes())
+        raise SceneError([FieldProblem("scene", f"no scene {str(name_or_path)!r}; known: {known}")])
+    return path
+
+
+def load_scene(name_or_path: str | Path) -> tuple[SceneSpec, Path]:
+    """Load a scene by name or path; returns it with the directory its mesh files live in."""
+    path = scene_path(name_or_path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError) as error:
+        raise SceneError([FieldProblem("file", str(error))], str(path)) from None
+    return scene_from_dict(data, str(path)), path.parent

@@ -1,0 +1,187 @@
+"""Persistent task records through SQLAlchemy (SQLite by default, PostgreSQL by URL).
+
+A task row is written before the service answers 202, and every status change is a
+committed transaction, so a restart finds every task where it was. Artifacts are files in
+``<data_dir>/tasks/<task id>/`` (see :mod:`service.artifacts`); the row stores their names.
+"""
+
+from __future__ import annotations
+
+import enum
+import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from typing import Any
+
+from sqlalchemy import JSON, Boolean, DateTime, ForeignKey, Integer, String, Text, create_engine
+from sqlalchemy import event, func, select
+from sqlalchemy.engine import Engine
+from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
+
+
+class TaskStatus(enum.StrEnum):
+    """Life cycle of a task."""
+
+    QUEUED = "queued"
+    PLANNING = "planning"
+    GENERATING = "generating"
+    DONE = "done"
+    FAILED = "failed"
+    CANCELLED = "cancelled"
+
+    @property
+    def finished(self) -> bool:
+        return self in (TaskStatus.DONE, TaskStatus.FAILED, TaskStatus.CANCELLED)
+
+
+def _now() -> datetime:
+    return datetime.now(UTC)
+
+
+class _Base(DeclarativeBase):
+    pass
+
+
+class TaskRow(_Base):
+    __tablename__ = "tasks"
+
+    id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    status: Mapped[str] = mapped_column(String(16), index=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    request: Mapped[dict] = mapped_column(JSON)
+    progress: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    result: Mapped[dict | None] = mapped_column(JSON, nullable=True)
+    error: Mapped[str | None] = mapped_column(Text, nullable=True)
+    cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
+
+
+class UploadRow(_Base):
+    __tablename__ = "uploads"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    task_id: Mapped[str] = mapped_column(ForeignKey("tasks.id"), index=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    outcome: Mapped[dict] = mapped_column(JSON)
+
+
+@dataclass(frozen=True)
+class TaskRecord:
+    """A task as plain data (what the API and the job manager pass around)."""
+
+    id: str
+    status: TaskStatus
+    created_at: datetime
+    updated_at: datetime
+    request: dict[str, Any]
+    progress: dict[str, Any] | None
+    result: dict[str, Any] | None
+    error: str | None
+    cancel_requested: bool
+
+    @classmethod
+    def of(cls, row: TaskRow) -> TaskRecord:
+        return cls(
+            id=row.id, status=TaskStatus(row.status), created_at=row.created_at,
+            updated_at=row.updated_at, request=row.request, progress=row.progress,
+            result=row.result, error=row.error, cancel_requested=row.cancel_requested,
+        )  # fmt: skip
+
+
+def make_engine(url: str) -> Engine:
+    """An engine for ``url``; SQLite gets WAL so readers do not block the writer."""
+    if url.startswith("sqlite"):
+        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 30})
+
+        @event.listens_for(engine, "connect")
+        def _pragmas(connection, _record) -> None:  # pragma: no cover - driver callback
+            cursor = connection.cursor()
+            cursor.execute("PRAGMA journal_mode=WAL")
+            cursor.execute("PRAGMA synchronous=NORMAL")
+            cursor.close()
+
+        return engine
+    return create_engine(url, pool_pre_ping=True)
+
+
+class TaskStore:
+    """Repository of tasks and uploads."""
+
+    def __init__(self, engine: Engine) -> None:
+        self.engine = engine
+        _Base.metadata.create_all(engine)
+        self._sessions = sessionmaker(engine, expire_on_commit=False)
+
+    @contextmanager
+    def _session(self) -> Iterator[Session]:
+        with self._sessions.begin() as session:
+            yield session
+
+    def create(self, request: dict[str, Any]) -> TaskRecord:
+        row = TaskRow(id=uuid.uuid4().hex, status=TaskStatus.QUEUED.value, request=request)
+        with self._session() as session:
+            session.add(row)
+        return TaskRecord.of(row)
+
+    def get(self, task_id: str) -> TaskRecord | None:
+        with self._session() as session:
+            row = session.get(TaskRow, task_id)
+            return TaskRecord.of(row) if row else None
+
+    def list(
+        self, status: TaskStatus | None = None, offset: int = 0, limit: int = 50
+    ) -> tuple[list[TaskRecord], int]:
+        """A page of tasks, newest first, and the total count matching the filter."""
+        query = select(TaskRow)
+        count = select(func.count()).select_from(TaskRow)
+        if status is not None:
+            query = query.where(TaskRow.status == status.value)
+            count = count.where(TaskRow.status == status.value)
+        query = query.order_by(TaskRow.created_at.desc(), TaskRow.id).offset(offset).limit(limit)
+        with self._session() as session:
+            rows = session.scalars(query).all()
+            return [TaskRecord.of(r) for r in rows], int(session.scalar(count) or 0)
+
+    def update(self, task_id: str, **fields: Any) -> TaskRecord | None:
+        """Set columns of a task (``status`` may be a TaskStatus); returns the new record.
+
+        A finished task keeps its status: a late progress report or a cancel racing a
+        completion cannot reopen it.
+        """
+        with self._session() as session:
+            row = session.get(TaskRow, task_id)
+            if row is None:
+                return None
+            if TaskStatus(row.status).finished and "status" in fields:
+                return TaskRecord.of(row)
+            for name, value in fields.items():
+                setattr(row, name, value.value if isinstance(value, TaskStatus) else value)
+            row.updated_at = _now()
+            return TaskRecord.of(row)
+
+    def unfinished(self) -> list[TaskRecord]:
+        """Tasks queued or running, oldest first (what a restart must resume)."""
+        active = [s.value for s in TaskStatus if not s.finished]
+        query = select(TaskRow).where(TaskRow.status.in_(active)).order_by(TaskRow.created_at)
+        with self._session() as session:
+            return [TaskRecord.of(r) for r in session.scalars(query).all()]
+
+    def counts_by_status(self) -> dict[str, int]:
+        query = select(TaskRow.status, func.count()).group_by(TaskRow.status)
+        with self._session() as session:
+            counts = dict(session.execute(query).tuples().all())
+        return {s.value: int(counts.get(s.value, 0)) for s in TaskStatus}
+
+    def add_upload(self, task_id: str, outcome: dict[str, Any]) -> None:
+        with self._session() as session:
+            session.add(UploadRow(task_id=task_id, outcome=outcome))
+
+    def uploads(self, task_id: str) -> list[dict[str, Any]]:
+        query = select(UploadRow).where(UploadRow.task_id == task_id).order_by(UploadRow.id)
+        with self._session() as session:
+            return [
+                {"created_at": r.created_at.isoformat(), **r.outcome}
+                for r in session.scalars(query).all()
+            ]
