@@ -73,6 +73,12 @@ class MavlinkTimeoutError(MavlinkError):
         super().__init__(f"{vehicle}: no answer within {timeout_s:.3g} s waiting for {stage}")
 
 
+class FinalAckTimeoutError(MavlinkTimeoutError):
+    """Every item of an upload was requested and sent, but the vehicle's final MISSION_ACK
+    never came: the mission may be complete on board, or not. Only a read-back can tell
+    (ArduPilot does not answer a re-sent last item once its transfer is over)."""
+
+
 class MissionVerificationError(MavlinkError):
     """The mission read back from a vehicle differs from the one uploaded.
 

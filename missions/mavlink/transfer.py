@@ -9,7 +9,9 @@ Protocol choices:
   request, then the last item). The vehicle drives the order; a re-request is answered again.
 - Upload succeeds only on MISSION_ACK ACCEPTED after the vehicle requested the last item. A
   stale ACCEPTED arriving earlier (e.g. a duplicated ack of an earlier operation) is
-  ignored, never taken for success. MAV_MISSION_INVALID_SEQUENCE does not end the transfer:
+  ignored, never taken for success. If that final ack is lost, re-sending the last item
+  does not bring it back (ArduPilot ignores items once the transfer is over), so the
+  timeout is a :class:`FinalAckTimeoutError`: a read-back can still prove the mission whole. MAV_MISSION_INVALID_SEQUENCE does not end the transfer:
   ArduPilot sends it for an item it did not ask for (typically a duplicate) and keeps the
   transfer open. Every other result ends it with :class:`MissionTransferError`.
 - Download requests every item with MISSION_REQUEST_INT (also accepting a MISSION_ITEM
@@ -24,7 +26,11 @@ from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
 from missions.items import MissionItem
-from missions.mavlink.errors import MavlinkTimeoutError, MissionTransferError
+from missions.mavlink.errors import (
+    FinalAckTimeoutError,
+    MavlinkTimeoutError,
+    MissionTransferError,
+)
 from missions.mavlink.messages import (
     MessageSpec,
     dialect,
@@ -62,6 +68,8 @@ def upload_mission(
     ------
     MissionTransferError
         The vehicle refused (the ack's MAV_MISSION_RESULT, and the last item sent).
+    FinalAckTimeoutError
+        All items went out but the final MISSION_ACK did not come back.
     MavlinkTimeoutError
         No answer for ``policy.step_timeout_s()``, or the transfer exceeded
         ``policy.deadline_s``.
@@ -91,8 +99,8 @@ def upload_mission(
             if msg is None:
                 silences += 1
                 if silences > policy.retries:
-                    raise MavlinkTimeoutError(link.name, f"upload: {stage}",
-                                              policy.step_timeout_s())  # fmt: skip
+                    lost = FinalAckTimeoutError if highest == count - 1 else MavlinkTimeoutError
+                    raise lost(link.name, f"upload: {stage}", policy.step_timeout_s())
                 logger.info("%s: no %s, re-sending %s", link.name, stage, last_sent[0])
                 link.send(last_sent)
                 continue

@@ -5,6 +5,8 @@ none. ArduPilot writes items as they arrive, so a failed upload leaves a half-wr
 mission, and a mission that reads back different cannot be trusted either; in both cases
 :func:`upload_and_verify` sends MISSION_CLEAR_ALL before re-raising, so that nobody starts a
 half mission by mistake. Its outcome is logged, never raised over the original error.
+When only the final MISSION_ACK was lost, the read-back (if any) decides: a mission that
+reads back identical is on board, whatever happened to the ack.
 
 Seq 0: ArduPilot keeps seq 0 for its home and reads it back as the current home position
 (frame GLOBAL, altitude AMSL) whatever was uploaded there, and overwrites it again at
@@ -23,7 +25,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from missions.items import DroneMission, MissionItem
-from missions.mavlink.errors import MavlinkError, MissionVerificationError
+from missions.mavlink.errors import (
+    FinalAckTimeoutError,
+    MavlinkError,
+    MissionVerificationError,
+)
 from missions.mavlink.messages import item_difference
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.transfer import clear_mission, download_mission, upload_mission
@@ -109,7 +115,12 @@ def upload_and_verify(
     items = mission.items if isinstance(mission, DroneMission) else tuple(mission)
     started = time.monotonic()
     try:
-        upload_mission(link, items, policy)
+        try:
+            upload_mission(link, items, policy)
+        except FinalAckTimeoutError:
+            if verification is Verification.NONE:
+                raise
+            logger.warning("%s: final MISSION_ACK lost; the read-back decides", link.name)
         home = None
         if verification is not Verification.NONE:
             stored = download_mission(link, policy)
