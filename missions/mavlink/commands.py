@@ -159,7 +159,7 @@ def start_missions(links: Sequence[VehicleLink], policy: RetryPolicy) -> StartRe
                     del pending[index]
             if not pending or attempt == policy.retries:
                 break
-            for index, link in pending.items():
+            for link in pending.values():
                 logger.warning("%s: MISSION_START not acknowledged, sending again", link.name)
                 link.send(command_long(command, link.target, confirmation=attempt + 1))
                 resent.add(link.name)

@@ -50,7 +50,9 @@ class MissionTransferError(MavlinkError):
         self.result_name = result_name
         self.seq = seq
         at = f" (after item {seq})" if seq is not None else ""
-        super().__init__(f"{vehicle}: mission {operation} refused with {result_name} ({result}){at}")
+        super().__init__(
+            f"{vehicle}: mission {operation} refused with {result_name} ({result}){at}"
+        )
 
 
 class MavlinkTimeoutError(MavlinkError):

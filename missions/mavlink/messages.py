@@ -13,7 +13,6 @@ bit-identical; :func:`as_sent` gives an item exactly as a receiver decodes it.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -184,14 +183,14 @@ def item_difference(expected: MissionItem, actual: MissionItem) -> str | None:
     """
     sent = as_sent(expected)
     for name in ("command", "frame", "autocontinue", "mission_type", "x", "y"):
-        a, b = int(getattr(sent, name)), int(getattr(actual, name))
+        want, got = int(getattr(sent, name)), int(getattr(actual, name))
         if name == "frame":
-            a, b = EQUIVALENT_FRAME.get(a, a), EQUIVALENT_FRAME.get(b, b)
-        if a != b:
+            want, got = EQUIVALENT_FRAME.get(want, want), EQUIVALENT_FRAME.get(got, got)
+        if want != got:
             return name
     for name in ("param1", "param2", "param3", "param4", "z"):
-        a, b = getattr(sent, name), float32(getattr(actual, name))
-        if not (a == b or (math.isnan(a) and math.isnan(b))):
+        value, back = getattr(sent, name), float32(getattr(actual, name))
+        if not (value == back or (math.isnan(value) and math.isnan(back))):
             return name
     return None
 
@@ -299,7 +298,3 @@ def global_position_int(
          "relative_alt": relative_alt_mm, "vx": vx, "vy": vy, "vz": vz, "hdg": heading_cdeg},
     )  # fmt: skip
 
-
-def fields_of(msg: Any) -> Mapping[str, Any]:
-    """The fields of a received pymavlink message as a plain dict (for logs and records)."""
-    return {name: getattr(msg, name) for name in msg.get_fieldnames()}

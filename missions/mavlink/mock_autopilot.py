@@ -218,18 +218,13 @@ class MockAutopilot:
 
     def _run(self) -> None:
         step = self.config.sim_step_s
-        heartbeat_steps = self._steps_of(self.config.heartbeat_interval_s)
         while not self._stop.is_set():
-            with self._lock:
-                while self._start_time + (self._steps + 1) * step <= self.clock.now():
-                    self._steps += 1
-                    self._time = self._start_time + self._steps * step
-                    self._advance(step)
-                    if (self._steps - 1) % heartbeat_steps == 0:
-                        self._send(self._heartbeat())
+            self._catch_up()
             wait = self.clock.real_seconds(self._time + step - self.clock.now())
             try:
                 if self._conn.select(min(max(wait, 0.0), 0.02)):
+                    # handle what arrived at the simulated time it arrived, not a step late
+                    self._catch_up()
                     while (msg := self._conn.recv_msg()) is not None:
                         self._receive(msg)
             except (OSError, ValueError) as error:
@@ -237,6 +232,18 @@ class MockAutopilot:
                     break  # closed under us on shutdown
                 logger.warning("mock %d: receive failed: %s", self.own.system, error)
                 self._stop.wait(0.05)
+
+    def _catch_up(self) -> None:
+        """Advance the simulation in whole steps up to the clock's present."""
+        step = self.config.sim_step_s
+        heartbeat_steps = self._steps_of(self.config.heartbeat_interval_s)
+        with self._lock:
+            while self._start_time + (self._steps + 1) * step <= self.clock.now():
+                self._steps += 1
+                self._time = self._start_time + self._steps * step
+                self._advance(step)
+                if (self._steps - 1) % heartbeat_steps == 0:
+                    self._send(self._heartbeat())
 
     def _send(self, spec: MessageSpec) -> None:
         for _ in range(self._channel.outgoing_copies()):
@@ -333,7 +340,7 @@ class MockAutopilot:
         if 1 <= seq < len(items):
             self._start_seq = seq
             if self.flight.running:
-                self.flight.start(items, seq, self._home.alt_m, self._time)
+                self.flight.start(items, seq, self._home.alt_m)
         return [mission_current(self._current if self.flight.running else self._start_seq,
                                 len(items))]  # fmt: skip
 
@@ -387,5 +394,5 @@ class MockAutopilot:
         navs = [i for i in items[self._start_seq :] if int(i.command) in NAV_COMMANDS]
         if not navs or (self.flight.on_ground and int(navs[0].command) != MavCmd.NAV_TAKEOFF):
             return dialect.MAV_RESULT_FAILED
-        self.flight.start(items, self._start_seq, self._home.alt_m, self._time)
+        self.flight.start(items, self._start_seq, self._home.alt_m)
         return dialect.MAV_RESULT_ACCEPTED

@@ -181,11 +181,74 @@ class FlightEvent:
     seq: int
 
 
-Step = Generator[None, float, None]
+
+
+@dataclass(frozen=True)
+class SpeedProfile:
+    """Along-track motion over one leg: the speed ramps at +-``accel`` from ``v_in`` to
+    ``v_peak``, holds it, and ramps to ``v_out`` at the end [m, m/s, m/s^2, s]."""
+
+    length: float
+    v_in: float
+    v_peak: float
+    v_out: float
+    accel: float
+
+    @classmethod
+    def plan(
+        cls, length: float, v_in: float, cruise: float, v_exit: float, accel: float
+    ) -> SpeedProfile:
+        """The fastest profile entering at ``v_in`` that never exceeds ``cruise`` (unless it
+        enters faster and must first slow down) and passes the end at ``v_exit``; if the leg
+        is too short to reach ``v_exit``, it ends at the speed the ramp reaches."""
+        reach = 2.0 * accel * length
+        if v_in**2 >= v_exit**2 + reach:  # cannot slow down to v_exit: brake all the way
+            return cls(length, v_in, v_in, math.sqrt(v_in**2 - reach), accel)
+        if v_exit**2 >= v_in**2 + reach:  # cannot speed up to v_exit: accelerate all the way
+            return cls(length, v_in, v_in, math.sqrt(v_in**2 + reach), accel)
+        # the triangle's apex, or cruise; entering above cruise, the apex exceeds v_in and
+        # the profile slows down to cruise first
+        peak = min(cruise, math.sqrt((reach + v_in**2 + v_exit**2) / 2.0))
+        return cls(length, v_in, peak, v_exit, accel)
+
+    def _ramp(self, v_from: float, v_to: float) -> tuple[float, float]:
+        duration = abs(v_to - v_from) / self.accel
+        return duration, 0.5 * (v_from + v_to) * duration
+
+    @property
+    def duration(self) -> float:
+        t1, d1 = self._ramp(self.v_in, self.v_peak)
+        t3, d3 = self._ramp(self.v_peak, self.v_out)
+        cruise = (self.length - d1 - d3) / self.v_peak if self.v_peak > 0 else 0.0
+        return t1 + max(cruise, 0.0) + t3
+
+    def at(self, t: float) -> tuple[float, float]:
+        """Distance along the leg [m] and speed [m/s] at ``t`` [s] after its start."""
+        t1, d1 = self._ramp(self.v_in, self.v_peak)
+        t3, _ = self._ramp(self.v_peak, self.v_out)
+        t2 = max(self.duration - t1 - t3, 0.0)
+        if t < t1:
+            change = (1.0 if self.v_peak >= self.v_in else -1.0) * self.accel
+            return self.v_in * t + 0.5 * change * t * t, self.v_in + change * t
+        if t < t1 + t2:
+            return d1 + self.v_peak * (t - t1), self.v_peak
+        tau = min(t - t1 - t2, t3)
+        sign = 1.0 if self.v_out >= self.v_peak else -1.0
+        distance = d1 + self.v_peak * t2 + self.v_peak * tau + 0.5 * sign * self.accel * tau**2
+        return min(distance, self.length), self.v_peak + sign * self.accel * tau
+
+
+#: A phase of the flight: receives each step's duration [s], returns the time left over in
+#: the step in which it ended [s], so that the next phase starts at the exact instant.
+Phase = Generator[None, float, float]
 
 
 class KinematicFlight:
     """State and mission execution of one vehicle (module docstring).
+
+    Motion is exact, not integrated: each leg follows its :class:`SpeedProfile` in
+    continuous time, and a phase that ends inside a simulation step hands the rest of the
+    step to the next one. Steps only decide when the state is sampled.
 
     Parameters
     ----------
@@ -216,7 +279,7 @@ class KinematicFlight:
         self._cruise = dynamics.cruise_speed_mps
         self._climb = dynamics.climb_speed_mps
         self._descent = dynamics.descent_speed_mps
-        self._program: Step | None = None
+        self._program: Generator[None, float, None] | None = None
         self._events: list[FlightEvent] = []
         self._time = 0.0
         self._rng = np.random.default_rng(imperfections.seed)
@@ -229,18 +292,15 @@ class KinematicFlight:
     def on_ground(self) -> bool:
         return self.position[2] <= GROUND_CLEARANCE_M
 
-    def start(
-        self, items: Sequence[MissionItem], first_seq: int, home_alt_m: float, now: float
-    ) -> None:
-        """Fly ``items`` from ``first_seq`` (seq 0 is home and never flown) from ``now`` [s];
-        relative altitudes are above ``home_alt_m`` (AMSL)."""
+    def start(self, items: Sequence[MissionItem], first_seq: int, home_alt_m: float) -> None:
+        """Fly ``items`` from ``first_seq`` (seq 0 is home and never flown) from the next
+        step on; relative altitudes are above ``home_alt_m`` (AMSL)."""
         self._cruise = self.dynamics.cruise_speed_mps
         self._climb = self.dynamics.climb_speed_mps
         self._descent = self.dynamics.descent_speed_mps
         self.finished = False
         self.landed_disarm = False
-        self._time = now
-        self._program = self._execute(tuple(items), max(first_seq, 1), home_alt_m, now)
+        self._program = self._execute(tuple(items), max(first_seq, 1), home_alt_m)
         next(self._program)
 
     def stop(self) -> None:
@@ -249,10 +309,13 @@ class KinematicFlight:
         self._speed = 0.0
 
     def step(self, now: float, dt_s: float) -> list[FlightEvent]:
-        """Advance to ``now`` by one step of ``dt_s`` [s]; the events of that step."""
+        """Advance by one step of ``dt_s`` ending at ``now`` [s]; the events of that step."""
         self._time = now
         if self._program is not None and not self.finished:
-            self._program.send(dt_s)
+            try:
+                self._program.send(dt_s)
+            except StopIteration:  # the last item is done
+                self.finished = True
         events, self._events = self._events, []
         return events
 
@@ -283,12 +346,10 @@ class KinematicFlight:
     # --- mission execution: generators that receive each step's dt ---------------------
 
     def _execute(
-        self, items: tuple[MissionItem, ...], first: int, home_alt: float, start: float
-    ) -> Step:
-        yield
-        release = start + self.imperfections.start_delay_s
-        while self._time < release:
-            yield
+        self, items: tuple[MissionItem, ...], first: int, home_alt: float
+    ) -> Generator[None, float, None]:
+        carry = yield  # the first step's duration: all of it is mission time
+        carry = yield from self._hold(self.imperfections.start_delay_s, carry)
         for seq in range(first, len(items)):
             item = items[seq]
             command = int(item.command)
@@ -297,26 +358,27 @@ class KinematicFlight:
                 continue
             self._events.append(FlightEvent("current", seq))  # MISSION_CURRENT: nav items
             if command == MavCmd.NAV_TAKEOFF:
-                yield from self._takeoff(self.enu_from_item(item, home_alt)[2])
+                altitude = self.enu_from_item(item, home_alt)[2]
+                if self.position[2] < altitude:
+                    top = np.array([*self.position[:2], altitude])
+                    carry = yield from self._fly(top, self._climb, 0.0, carry)
             elif command == MavCmd.NAV_WAYPOINT:
                 target = self.enu_from_item(item, home_alt)
                 through = 1.0 - self.imperfections.waypoint_slowdown
                 exit_fraction = through if self._passes_through(items, seq) else 0.0
-                yield from self._fly(target, self._leg_speed(target), exit_fraction)
-                hold_until = self._time + max(item.param1, 0.0)
-                while self._time < hold_until:
-                    yield
+                carry = yield from self._fly(target, self._leg_speed(target), exit_fraction,
+                                             carry)  # fmt: skip
+                carry = yield from self._hold(max(item.param1, 0.0), carry)
             elif command == MavCmd.NAV_DELAY:
-                yield from self._delay(item)
+                carry = yield from self._hold(self._delay_s(item, carry), carry)
             elif command == MavCmd.NAV_LOITER_UNLIM:
                 target = self.enu_from_item(item, home_alt)
-                yield from self._fly(target, self._leg_speed(target), 0.0)
+                yield from self._fly(target, self._leg_speed(target), 0.0, carry)
                 while True:
                     yield
             elif command == MavCmd.NAV_LAND:
-                yield from self._land(item, home_alt)
+                carry = yield from self._land(item, home_alt, carry)
             self._events.append(FlightEvent("reached", seq))
-        self.finished = True
 
     def _change_speed(self, item: MissionItem) -> None:
         if item.param2 <= 0:  # -1 (or 0) means "no change" in MAV_CMD_DO_CHANGE_SPEED
@@ -350,62 +412,54 @@ class KinematicFlight:
             return min(self._cruise, self._descent / -slope)
         return self._cruise
 
-    def _fly(self, target: np.ndarray, speed: float, exit_fraction: float) -> Step:
+    def _hold(self, duration: float, carry: float) -> Phase:
+        """Stay put for ``duration`` [s]."""
+        self._speed = 0.0 if duration > 0 else self._speed
+        if duration > 0:
+            self.velocity = np.zeros(3)
+        elapsed = carry
+        while elapsed < duration:
+            elapsed += yield
+        return elapsed - duration
+
+    def _fly(self, target: np.ndarray, speed: float, exit_fraction: float, carry: float) -> Phase:
         """Straight line to ``target`` at ``speed`` [m/s] (before the speed scale), passing
-        ``target`` at ``exit_fraction`` of that speed, the along-track speed changing by at
-        most max_accel (trapezoidal profile)."""
+        ``target`` at ``exit_fraction`` of that speed (:class:`SpeedProfile`)."""
         start = self.position.copy()
         delta = target - start
         length = float(np.linalg.norm(delta))
         if length < 1e-9:
-            return
+            return carry
         direction = delta / length
-        accel = self.dynamics.max_accel_mps2
         cruise = speed * self.imperfections.speed_scale
-        exit_speed = cruise * exit_fraction
-        travelled = 0.0
-        while travelled < length:
-            dt_s = yield
-            braking = math.sqrt(exit_speed**2 + 2.0 * accel * (length - travelled))
-            wanted = min(cruise, braking)
-            change = float(np.clip(wanted - self._speed, -accel * dt_s, accel * dt_s))
-            previous = self._speed
-            self._speed = max(self._speed + change, 0.0)
-            # trapezoidal rule: the distance of a step with linearly changing speed
-            travelled = min(length, travelled + 0.5 * (previous + self._speed) * dt_s)
-            self.position = start + direction * travelled
+        profile = SpeedProfile.plan(length, self._speed, cruise, cruise * exit_fraction,
+                                    self.dynamics.max_accel_mps2)  # fmt: skip
+        duration = profile.duration
+        elapsed = carry
+        while elapsed < duration:
+            along, self._speed = profile.at(elapsed)
+            self.position = start + direction * along
             self.velocity = direction * self._speed
+            elapsed += yield
+        self.position = target.copy()
+        self._speed = profile.v_out
+        self.velocity = direction * self._speed
+        return elapsed - duration
 
-    def _takeoff(self, altitude: float) -> Step:
-        if self.position[2] >= altitude:
-            return
-        self._speed = 0.0
-        yield from self._fly(np.array([*self.position[:2], altitude]), self._climb, 0.0)
-        self._speed = 0.0
-        self.velocity[:] = 0.0
-
-    def _land(self, item: MissionItem, home_alt: float) -> Step:
+    def _land(self, item: MissionItem, home_alt: float, carry: float) -> Phase:
         if item.x != 0 or item.y != 0:
             above = self.enu_from_item(item, home_alt)
             above[2] = self.position[2]
-            yield from self._fly(above, self._leg_speed(above), 0.0)
-        self._speed = 0.0
+            carry = yield from self._fly(above, self._leg_speed(above), 0.0, carry)
         ground = np.array([*self.position[:2], 0.0])
-        yield from self._fly(ground, self.dynamics.land_speed_mps, 0.0)
-        self._speed = 0.0
-        self.velocity[:] = 0.0
+        carry = yield from self._fly(ground, self.dynamics.land_speed_mps, 0.0, carry)
         self.landed_disarm = True
+        return carry
 
-    def _delay(self, item: MissionItem) -> Step:
-        self._speed = 0.0
-        self.velocity[:] = 0.0
+    def _delay_s(self, item: MissionItem, carry: float) -> float:
+        """How long NAV_DELAY ``item`` holds from now (the instant ``carry`` before the end
+        of the current step) [s]."""
         if item.param1 >= 0:
-            release = self._time + item.param1
-        else:
-            utc = self._time + self.imperfections.clock_offset_s
-            wait = seconds_until_utc(
-                self.epoch_utc + utc, int(item.param2), int(item.param3), int(item.param4)
-            )
-            release = self._time + wait
-        while self._time < release:
-            yield
+            return float(item.param1)
+        now_utc = self.epoch_utc + self._time - carry + self.imperfections.clock_offset_s
+        return seconds_until_utc(now_utc, int(item.param2), int(item.param3), int(item.param4))

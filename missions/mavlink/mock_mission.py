@@ -117,10 +117,6 @@ class MissionServer:
         """The stored mission as a download returns it (seq 0 = current home)."""
         return (self._home(), *self._items[1:])
 
-    @property
-    def receiving(self) -> bool:
-        return self._upload is not None
-
     def clear(self) -> None:
         """Forget everything but home (MISSION_CLEAR_ALL)."""
         self._items = [self._home()]

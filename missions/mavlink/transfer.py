@@ -11,9 +11,10 @@ Protocol choices:
   stale ACCEPTED arriving earlier (e.g. a duplicated ack of an earlier operation) is
   ignored, never taken for success. If that final ack is lost, re-sending the last item
   does not bring it back (ArduPilot ignores items once the transfer is over), so the
-  timeout is a :class:`FinalAckTimeoutError`: a read-back can still prove the mission whole. MAV_MISSION_INVALID_SEQUENCE does not end the transfer:
-  ArduPilot sends it for an item it did not ask for (typically a duplicate) and keeps the
-  transfer open. Every other result ends it with :class:`MissionTransferError`.
+  timeout is a :class:`FinalAckTimeoutError`: a read-back can still prove the mission whole.
+- MAV_MISSION_INVALID_SEQUENCE does not end the transfer: ArduPilot sends it for an item it
+  did not ask for (typically a duplicate) and keeps the transfer open. Every other result
+  ends it with :class:`MissionTransferError`.
 - Download requests every item with MISSION_REQUEST_INT (also accepting a MISSION_ITEM
   answer) and closes with MISSION_ACK ACCEPTED.
 """
@@ -192,16 +193,19 @@ def download_mission(
     with link.subscribe(types) as inbox:
         count = _exchange(
             link, inbox, mission_request_list(link.target, mission_type),
-            lambda m: m.count if m.get_type() == "MISSION_COUNT" else None,
+            lambda m: int(m.count) if m.get_type() == "MISSION_COUNT" else None,
             "download: MISSION_COUNT", "download", policy, deadline, mission_type,
         )  # fmt: skip
         items = []
         for seq in range(count):
+
+            def item_of(msg: Any, seq: int = seq) -> MissionItem | None:
+                if msg.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM") and msg.seq == seq:
+                    return item_from_message(msg)
+                return None
+
             items.append(_exchange(
-                link, inbox, mission_request_int(seq, link.target, mission_type),
-                lambda m, seq=seq: item_from_message(m) if (
-                    m.get_type() in ("MISSION_ITEM_INT", "MISSION_ITEM") and m.seq == seq)
-                else None,
+                link, inbox, mission_request_int(seq, link.target, mission_type), item_of,
                 f"download: MISSION_ITEM_INT {seq}", "download", policy, deadline,
                 mission_type,
             ))  # fmt: skip

@@ -41,6 +41,8 @@ logger = logging.getLogger(__name__)
 
 #: MAV_COMP_ID_MISSIONPLANNER: the component id ground stations use.
 GCS_COMPONENT_ID = 190
+#: Who we are on the link by default: system 255, the usual ground station id.
+GROUND_STATION = Endpoint(255, GCS_COMPONENT_ID)
 
 _NETWORK = re.compile(r"^(udpin|udpout|udp|tcpin|tcp):(?://)?(?P<host>[^:/]+):(?P<port>\d+)$")
 _SERIAL = re.compile(r"^(?:serial:(?://)?)?(?P<device>/dev/[^,:]+|COM\d+)(?:[,:](?P<baud>\d+))?$")
@@ -188,7 +190,7 @@ class VehicleLink:
         address: str,
         policy: RetryPolicy | None = None,
         name: str | None = None,
-        source: Endpoint = Endpoint(255, GCS_COMPONENT_ID),
+        source: Endpoint = GROUND_STATION,
     ) -> None:
         self.address = address
         self.name = name or address
