@@ -6,10 +6,11 @@ Re-sending is safe for the commands used here: arming an armed vehicle and start
 running mission are both accepted without effect by ArduCopter.
 
 Starting several vehicles: design.md section 9 measured that one MISSION_START sent to all
-keeps three copters within 0.13 m of the plan. :func:`start_missions` encodes the command
-for every vehicle first and then writes them back to back, so the vehicles receive it
-within the time of a few socket writes (the spread is measured and reported); only a
-vehicle that did not acknowledge is sent it again, and the report says which.
+keeps three copters within 0.13 m of the plan. :func:`start_missions` builds the command
+for every vehicle first and then sends them back to back (one packing and one socket write
+each, tens of microseconds), so the vehicles receive it within a fraction of a millisecond
+of each other on a local network (the spread is measured and reported); only a vehicle
+that did not acknowledge is sent it again, and the report says which.
 """
 
 from __future__ import annotations

@@ -188,13 +188,14 @@ def test_shared_clock_start_delays_and_clock_offsets(spawn_mock, fast_policy):
         )) for k in (1, 2, 3)])  # fmt: skip
         fleet.request_position_streams(rate_hz=20.0)
         fleet.arm()
-        fleet.start()
+        report = fleet.start()
         wait_for(lambda: all(v.reached and v.reached[-1].seq == 3
                              for v in recorder.snapshot().values()), 20.0 / speedup + 2.0)
     tracks = [enu_track(recorder.snapshot()[a].positions) for a in addresses]
     up, north = np.array([0.0, 0.0, 3.0]), np.array([0.0, 12.0, 3.0])
     lift = [crossing_time(t, p, np.zeros(3), up) for t, p in tracks]
     leave = [crossing_time(t, p, up, north) for t, p in tracks]
+    assert report.resent == () and report.spread_s < 0.005  # sent back to back
     assert max(lift) + 1.1 < barrier_s - max(offsets)  # all waited at the barrier
     # time_boot_ms of all three count from the shared epoch, so they compare directly
     assert [x - lift[0] for x in lift] == pytest.approx(delays, abs=0.05)
@@ -299,3 +300,20 @@ def test_stream_request_falls_back_to_request_data_stream(spawn_mock):
         request_position_stream(link, 5.0, policy)
     # REQUEST_DATA_STREAM(POSITION) turned on the position stream only
     assert mock.streaming == {"GLOBAL_POSITION_INT"}
+
+
+def test_disarm_is_refused_in_the_air_unless_forced(spawn_mock, fast_policy):
+    mock, address = spawn_mock(MockConfig(home=HOME), SimClock(SPEEDUP))
+    mission = DroneMission(1, (home_item(), item(1, MavCmd.NAV_TAKEOFF, z=2.0),
+                               item(2, MavCmd.NAV_LOITER_UNLIM, z=2.0)))  # fmt: skip
+    with Fleet.connect([address], fast_policy) as fleet, fleet.recorder() as recorder:
+        link = fleet.links[0]
+        fleet.upload([mission])
+        fleet.arm()
+        fleet.start()
+        wait_for(lambda: [e.seq for e in recorder.snapshot()[address].reached] == [1], 2.0)
+        with pytest.raises(CommandRejectedError) as error:
+            send_command(link, 400, (0.0,), fast_policy)  # MAV_CMD_COMPONENT_ARM_DISARM
+        assert error.value.result_name == "MAV_RESULT_DENIED" and mock.armed
+        send_command(link, 400, (0.0, 21196.0), fast_policy)  # forced
+        assert not mock.armed

@@ -107,3 +107,18 @@ def test_delay_and_land():
     # 2 m down at 0.5 m/s with 2.5 m/s^2 ramps: 0.2 s, 1.9 m cruise, 0.2 s = 4.2 s
     assert reached_at(events, 3) - reached_at(events, 2) == pytest.approx(4.2, abs=0.011)
     assert p[-1, 2] == pytest.approx(0.0)
+
+
+def test_loiter_unlimited_holds_and_never_completes():
+    items = (
+        home_item(),
+        item(1, MavCmd.NAV_TAKEOFF, z=3.0),
+        item(2, MavCmd.NAV_LOITER_UNLIM, en=(5.0, 0.0), z=3.0),
+        item(3, MavCmd.NAV_LAND),
+    )
+    t, p, speed, events = fly(Imperfections(), items, limit=60.0)
+    assert t[-1] >= 60.0  # still flying when the test stops it
+    assert [(kind, seq) for _, kind, seq in events] == [
+        ("current", 1), ("reached", 1), ("current", 2)]  # fmt: skip
+    assert p[-1] == pytest.approx([5.0, 0.0, 3.0], abs=0.01)  # 1e-7 degree steps
+    assert speed[-1] == 0.0
