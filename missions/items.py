@@ -47,7 +47,7 @@ class MissionItem:
     """One MISSION_ITEM_INT, field for field (params as in the MAV_CMD's definition)."""
 
     seq: int
-    frame: MavFrame
+    frame: MavFrame | int  #: an int for frames outside MavFrame (e.g. read from a vehicle)
     command: MavCmd | int
     current: int = 0
     autocontinue: int = 1

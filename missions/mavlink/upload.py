@@ -1,0 +1,138 @@
+"""Upload a mission and prove it arrived: upload, read back, compare item by item.
+
+A vehicle ends in one of two states: it holds the verified new mission, or (best effort)
+none. ArduPilot writes items as they arrive, so a failed upload leaves a half-written
+mission, and a mission that reads back different cannot be trusted either; in both cases
+:func:`upload_and_verify` sends MISSION_CLEAR_ALL before re-raising, so that nobody starts a
+half mission by mistake. Its outcome is logged, never raised over the original error.
+When only the final MISSION_ACK was lost, the read-back (if any) decides: a mission that
+reads back identical is on board, whatever happened to the ack.
+
+Seq 0: ArduPilot keeps seq 0 for its home and reads it back as the current home position
+(frame GLOBAL, altitude AMSL) whatever was uploaded there, and overwrites it again at
+arming. :attr:`Verification.ARDUPILOT` therefore checks that seq 0 exists and compares every
+other item; the home the vehicle reported is returned in :class:`UploadReport` so the caller
+can check it against the mission's origin. :attr:`Verification.ALL_ITEMS` compares seq 0 as
+well (vehicles that store it verbatim, e.g. PX4 or MAVSDK's MissionRawServer).
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from missions.items import DroneMission, MissionItem
+from missions.mavlink.errors import (
+    FinalAckTimeoutError,
+    MavlinkError,
+    MissionVerificationError,
+)
+from missions.mavlink.messages import item_difference
+from missions.mavlink.policy import RetryPolicy
+from missions.mavlink.transfer import clear_mission, download_mission, upload_mission
+from missions.mavlink.transport import VehicleLink
+
+logger = logging.getLogger(__name__)
+
+
+class Verification(enum.Enum):
+    """How an uploaded mission is checked by reading it back (module docstring)."""
+
+    NONE = "none"  #: trust the vehicle's ACCEPTED
+    ARDUPILOT = "ardupilot"  #: every item but seq 0 (the vehicle's home)
+    ALL_ITEMS = "all_items"  #: every item
+
+
+@dataclass(frozen=True)
+class UploadReport:
+    """A verified upload to one vehicle.
+
+    ``home`` is seq 0 as read back (the vehicle's home for ArduPilot), None without
+    verification; ``duration_s`` covers upload and read-back [s].
+    """
+
+    vehicle: str
+    system_id: int
+    item_count: int
+    home: MissionItem | None
+    duration_s: float
+
+
+def verify_mission(
+    vehicle: str,
+    expected: Sequence[MissionItem],
+    actual: Sequence[MissionItem],
+    verification: Verification,
+) -> None:
+    """Compare a read-back mission with the uploaded one (see :func:`item_difference`).
+
+    Raises
+    ------
+    MissionVerificationError
+        At the first differing item and field (``field="count"`` if the counts differ).
+    """
+    if len(expected) != len(actual):
+        raise MissionVerificationError(vehicle, None, "count", len(expected), len(actual))
+    first = 1 if verification is Verification.ARDUPILOT else 0
+    for want, got in zip(expected[first:], actual[first:], strict=True):
+        field = item_difference(want, got)
+        if field is not None:
+            raise MissionVerificationError(
+                vehicle, want.seq, field, getattr(want, field), getattr(got, field)
+            )
+
+
+def _discard(link: VehicleLink, policy: RetryPolicy) -> None:
+    """Clear a mission that must not stay on the vehicle; log, never raise."""
+    quick = RetryPolicy(
+        request_timeout_s=policy.request_timeout_s,
+        retries=1,
+        deadline_s=policy.request_timeout_s * 2,
+    )
+    try:
+        clear_mission(link, quick)
+        logger.warning("%s: mission cleared after the failed upload", link.name)
+    except MavlinkError as error:
+        logger.error("%s: could not clear the failed upload: %s", link.name, error)
+
+
+def upload_and_verify(
+    link: VehicleLink,
+    mission: DroneMission | Sequence[MissionItem],
+    policy: RetryPolicy,
+    verification: Verification = Verification.ARDUPILOT,
+) -> UploadReport:
+    """Upload ``mission`` on ``link`` (heartbeat already received) and verify it.
+
+    Raises
+    ------
+    MissionTransferError, MavlinkTimeoutError, MissionVerificationError
+        After clearing the vehicle's mission (module docstring).
+    """
+    items = mission.items if isinstance(mission, DroneMission) else tuple(mission)
+    started = time.monotonic()
+    try:
+        try:
+            upload_mission(link, items, policy)
+        except FinalAckTimeoutError:
+            if verification is Verification.NONE:
+                raise
+            logger.warning("%s: final MISSION_ACK lost; the read-back decides", link.name)
+        home = None
+        if verification is not Verification.NONE:
+            stored = download_mission(link, policy)
+            verify_mission(link.name, items, stored, verification)
+            home = stored[0] if stored else None
+    except MavlinkError:
+        _discard(link, policy)
+        raise
+    return UploadReport(
+        vehicle=link.name,
+        system_id=link.info.system_id,
+        item_count=len(items),
+        home=home,
+        duration_s=time.monotonic() - started,
+    )
