@@ -12,6 +12,7 @@ import json
 import logging
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from importlib.metadata import entry_points
 
 import numpy as np
@@ -91,6 +92,43 @@ def _cmd_system(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from flycrane.benchmark import format_table, run_benchmark, summarize, write_results
+    from flycrane.execution import local_executor
+    from flycrane.planning.planners import PlannerOptions
+    from flycrane.planning.problem import PlanningProblem
+    from flycrane.profiles import path_profile, plot_profile_bands
+    from flycrane.scene import load_scene
+
+    for scene in args.scenes:
+        load_scene(scene)  # unknown names fail here, before any work starts
+    base = PlannerOptions(step=args.step) if args.step else PlannerOptions()
+    out = Path(args.out)
+    total = len(args.scenes) * len(args.planners) * args.runs
+    records = []
+    with local_executor(args.workers) as executor:
+        for record in run_benchmark(executor, args.scenes, args.planners, args.runs,
+                                    args.budget, base):  # fmt: skip
+            records.append(record)
+            print(f"[{len(records)}/{total}] {record.scene} {record.planner} seed {record.seed}: "
+                  f"{record.status} in {record.time:.2f} s", file=sys.stderr, flush=True)  # fmt: skip
+    records.sort(key=lambda r: (args.scenes.index(r.scene), args.planners.index(r.planner), r.seed))
+    rows = summarize(records)
+    write_results(records, rows, out)
+    for scene in args.scenes:
+        problem = PlanningProblem.named(scene)
+        groups = {
+            planner: [path_profile(problem.system, problem.space, np.array(r.path))
+                      for r in records if r.scene == scene and r.planner == planner and r.solved]
+            for planner in args.planners
+        }  # fmt: skip
+        plot_profile_bands(groups, problem.system, out / f"fig6_{scene}.png",
+                           title=f"{scene}: tension and thrust ranges along the paths")  # fmt: skip
+    print(format_table(rows))
+    print(f"results in {out}/ (runs.csv, summary.json, fig6_<scene>.png)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="flycrane",
@@ -114,6 +152,17 @@ def build_parser() -> argparse.ArgumentParser:
     system.add_argument("--system", metavar="FILE", help="system to read (default: benchmark)")
     system.add_argument("--write", metavar="FILE", help="write it as .toml or .json")
     system.set_defaults(handler=_cmd_system)
+
+    bench = sub.add_parser("bench", help="Table I and Fig. 6: planners over scenes and seeds")
+    bench.add_argument("--scenes", nargs="+", default=["rescue", "puzzle"])
+    bench.add_argument("--planners", nargs="+", default=["trrt", "rrt", "ompl-trrt", "ompl-rrt"],
+                       choices=["trrt", "rrt", "ompl-trrt", "ompl-rrt"])  # fmt: skip
+    bench.add_argument("--runs", type=int, default=100, help="seeds per scene and planner")
+    bench.add_argument("--budget", type=float, default=60.0, help="seconds per run")
+    bench.add_argument("--step", type=float, help="extension step (default: planner default)")
+    bench.add_argument("--workers", type=int, help="processes (default: all CPUs)")
+    bench.add_argument("--out", default="bench-results", help="directory for the results")
+    bench.set_defaults(handler=_cmd_bench)
 
     for entry in entry_points(group="flycrane.commands"):
         entry.load()(sub)

@@ -40,7 +40,7 @@ from flycrane.planning.result import (
     TerminationCondition,
 )
 from flycrane.planning.state_space import ConfigurationSpace
-from flycrane.planning.trrt import TRRTConfig, Validity
+from flycrane.planning.trrt import STEP_FRACTION, TRRTConfig, Validity
 
 #: How often the parent polls the child for a result or a cancel request [s].
 POLL_INTERVAL = 0.05
@@ -195,7 +195,7 @@ def _solve(job: _Job) -> tuple[PlannerStatus, NDArray[np.float64], int, int]:
         planner.setFrontierNodeRatio(job.config.refinement_ratio)
     else:
         planner = og.RRT(info)
-    planner.setRange(job.config.step)
+    planner.setRange(job.config.step or STEP_FRACTION * job.space.maximum_extent)
     planner.setGoalBias(job.config.goal_bias)
     planner.setProblemDefinition(problem)
     planner.setup()

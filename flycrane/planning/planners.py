@@ -36,7 +36,9 @@ class PlannerOptions(BaseModel):
     algorithm: Algorithm = "trrt"
     seed: int = Field(0, ge=0, description="random seed: same seed, same path")
     time_budget: float = Field(60.0, gt=0, le=86_400, description="planning time limit [s]")
-    step: float = Field(1.0, gt=0, description="extension step delta [state-space distance]")
+    step: float | None = Field(
+        None, gt=0, description="extension step delta [state-space distance]; None: 0.1 x extent"
+    )
     goal_bias: float = Field(0.05, ge=0, le=1)
     init_temperature: float | None = Field(None, gt=0, description="None: 1e-6 c(q_start)")
     temperature_rate: float = Field(0.1, ge=0, le=1, description="T_rate")

@@ -36,7 +36,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -72,11 +72,18 @@ class Validity(Protocol):
         """Why a configuration (9,) is invalid, for messages."""
 
 
+#: Default step as a fraction of the space's maximum extent (OMPL's RRT uses 1/5); the
+#: measurements behind it are in BENCHMARKS.md ("Step size").
+STEP_FRACTION = 0.1
+
+
 @dataclass(frozen=True)
 class TRRTConfig:
     """Parameters of T-RRT (and RRT), with the paper's values as defaults."""
 
-    step: float = 1.0  #: delta: largest extension, in state-space distance (~m of drone travel)
+    #: delta: largest extension [state-space distance, ~m of drone travel]; None: filled in
+    #: at setup as STEP_FRACTION of the space's maximum extent.
+    step: float | None = None
     goal_bias: float = 0.05  #: probability of sampling the goal
     transition_test: bool = True  #: False gives plain RRT
     refinement_control: bool = True  #: Algorithm 3 on/off
@@ -89,7 +96,7 @@ class TRRTConfig:
 
     def __post_init__(self) -> None:
         checks = [
-            ("step", self.step > 0, "must be > 0"),
+            ("step", self.step is None or self.step > 0, "must be > 0"),
             ("goal_bias", 0.0 <= self.goal_bias <= 1.0, "must be in [0, 1]"),
             ("init_temperature", self.init_temperature is None or self.init_temperature > 0,
              "must be > 0"),
@@ -104,7 +111,7 @@ class TRRTConfig:
             raise InputError(problems, "planner options")
 
     @classmethod
-    def rrt(cls, **overrides: float) -> TRRTConfig:
+    def rrt(cls, **overrides: float | None) -> TRRTConfig:
         """Plain RRT: no transition test, no refinement control."""
         return cls(transition_test=False, refinement_control=False, **overrides)
 
@@ -159,7 +166,10 @@ class TRRT:
     ) -> None:
         self.space = space
         self.validity = validity
-        self.config = config or TRRTConfig()
+        config = config or TRRTConfig()
+        if config.step is None:
+            config = replace(config, step=STEP_FRACTION * space.maximum_extent)
+        self.config = config
         self.name = name or ("trrt" if self.config.transition_test else "rrt")
 
     def solve(
