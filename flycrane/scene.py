@@ -121,6 +121,8 @@ class Bounds(BaseModel):
     max_tilt: float = Field(0.6, gt=0.0, le=math.pi, description="largest theta [rad]")
     alpha_low: float = Field(0.3, description="[rad]")
     alpha_high: float = Field(1.8, description="[rad]")
+    sigma_low: float = Field(-math.pi, ge=-2 * math.pi, description="torsion range [rad]")
+    sigma_high: float = Field(math.pi, le=2 * math.pi, description="torsion range [rad]")
 
     @model_validator(mode="after")
     def _ordered(self) -> Bounds:
@@ -130,6 +132,8 @@ class Bounds(BaseModel):
             raise ValueError(f"position_low must be below position_high on {', '.join(axes)}")
         if not 0.0 <= self.alpha_low < self.alpha_high <= math.pi:
             raise ValueError("need 0 <= alpha_low < alpha_high <= pi")
+        if not 0.0 < self.sigma_high - self.sigma_low <= 2 * math.pi:
+            raise ValueError("need sigma_low < sigma_high, at most 2 pi apart")
         return self
 
 

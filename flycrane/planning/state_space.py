@@ -14,8 +14,8 @@ radian, by default the largest distance from P to a drone and the largest apex r
 so a unit of distance is about a metre of drone travel.
 
 Sampling is uniform in the scene bounds: position in a box, tilt axis uniform on the cap
-theta <= max_tilt (cos theta uniform, phi uniform), torsion sigma uniform, alphas uniform
-in their range.
+theta <= max_tilt (cos theta uniform, phi uniform), torsion sigma uniform in its range (the
+full circle unless the scene narrows it), alphas uniform in their range.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from flycrane.cable_system import CableSystem
 from flycrane.kinematics import drone_positions_in_platform_frame, matrix_from_tilt_torsion
-from flycrane.planning.interpolation import interpolate
+from flycrane.planning.interpolation import interpolate, wrap_angle
 
 #: Width of the embedding E(q).
 EMBEDDING_SIZE = 3 + 9 + 6
@@ -44,6 +44,8 @@ class ConfigurationSpace:
     alpha_high: float  #: [rad]
     rotation_weight: float = 2.0  #: rho_R [m/rad]
     alpha_weight: float = 1.9  #: rho_a [m/rad]
+    sigma_low: float = -np.pi  #: torsion range [rad]; the full circle by default
+    sigma_high: float = np.pi
 
     @classmethod
     def for_system(
@@ -54,6 +56,8 @@ class ConfigurationSpace:
         max_tilt: float,
         alpha_low: float,
         alpha_high: float,
+        sigma_low: float = -np.pi,
+        sigma_high: float = np.pi,
     ) -> ConfigurationSpace:
         """Bounds as given; metric weights from the system's lever arms (module docstring)."""
         drones = drone_positions_in_platform_frame(system, np.ones((1, 3)))[0]
@@ -65,6 +69,8 @@ class ConfigurationSpace:
             alpha_high=float(alpha_high),
             rotation_weight=float(np.linalg.norm(drones, axis=1).max()),
             alpha_weight=float(system.drone_radius.max()),
+            sigma_low=float(sigma_low),
+            sigma_high=float(sigma_high),
         )
 
     def embed(self, q: ArrayLike) -> NDArray[np.float64]:
@@ -99,7 +105,15 @@ class ConfigurationSpace:
             np.all((q[:, :3] >= low) & (q[:, :3] <= high), axis=1)
             & (q[:, 4] <= self.max_tilt)
             & np.all((alpha >= self.alpha_low) & (alpha <= self.alpha_high), axis=1)
+            & self.sigma_in_range(q[:, 5])
         )
+
+    def sigma_in_range(self, sigma: ArrayLike) -> NDArray[np.bool_]:
+        """True where the torsion lies in [sigma_low, sigma_high] on the circle."""
+        offset = np.remainder(np.asarray(sigma, dtype=float) - self.sigma_low, 2 * np.pi)
+        span = self.sigma_high - self.sigma_low
+        # 1e-12: the range's own end points must pass after wrapping round-off
+        return (offset <= span + 1e-12) | (offset >= 2 * np.pi - 1e-12)
 
     def sample_uniform(self, rng: np.random.Generator, n: int = 1) -> NDArray[np.float64]:
         """n configurations uniform in the bounds (module docstring), shape (n, 9)."""
@@ -107,7 +121,7 @@ class ConfigurationSpace:
         q[:, :3] = rng.uniform(self.position_low, self.position_high, (n, 3))
         q[:, 3] = rng.uniform(-np.pi, np.pi, n)
         q[:, 4] = np.arccos(rng.uniform(np.cos(self.max_tilt), 1.0, n))
-        q[:, 5] = rng.uniform(-np.pi, np.pi, n)
+        q[:, 5] = wrap_angle(rng.uniform(self.sigma_low, self.sigma_high, n))
         q[:, 6:9] = rng.uniform(self.alpha_low, self.alpha_high, (n, 3))
         return q
 

@@ -97,6 +97,15 @@ class ValidityChecker:
             valid[valid] = self.collision.collision_free(q[valid])
         return valid
 
+    def is_safe(self, q: ArrayLike) -> NDArray[np.bool_]:
+        """Feasible and collision-free, ignoring the sampling bounds (N,): what a flown
+        configuration must be (the bounds only shape where the planner searches)."""
+        q = as_configurations(q)
+        safe = np.isfinite(configuration_cost(self.system, q))
+        if safe.any():
+            safe[safe] = self.collision.collision_free(q[safe])
+        return safe
+
     def motion_is_valid(self, q_from: ArrayLike, q_to: ArrayLike) -> bool:
         """Every configuration of the local path q_from -> q_to is valid."""
         steps = max(1, int(np.ceil(self.space.distance(q_from, q_to)[0] / self.resolution)))
@@ -117,6 +126,10 @@ class ValidityChecker:
         ]
         if q[0, 4] > space.max_tilt:
             outside.append(f"theta = {q[0, 4]:.4g} above max_tilt {space.max_tilt:.4g}")
+        if not space.sigma_in_range(q[0, 5]):
+            outside.append(
+                f"sigma = {q[0, 5]:.4g} not in [{space.sigma_low:.4g}, {space.sigma_high:.4g}]"
+            )
         outside += [
             f"alpha{k + 1} = {q[0, 6 + k]:.4g} not in [{space.alpha_low:.4g}, "
             f"{space.alpha_high:.4g}]"

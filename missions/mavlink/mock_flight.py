@@ -400,16 +400,22 @@ class KinematicFlight:
         return nxt is not None and int(nxt.command) == MavCmd.NAV_WAYPOINT
 
     def _leg_speed(self, target: np.ndarray) -> float:
-        """Cruise speed, lowered so that the vertical part stays within the climb or descent
-        speed (as ArduCopter's WPNAV_SPEED_UP / _DN bound a sloped leg) [m/s]."""
+        """Speed along a straight leg: the largest whose horizontal part stays within the
+        cruise (ground) speed and whose vertical part within the climb or descent speed, as
+        ArduCopter's S-curve track limits it (SCurve::calculate_track, kinematic_limit)
+        [m/s]."""
         delta = target - self.position
         length = float(np.linalg.norm(delta))
-        slope = delta[2] / length if length > 0 else 0.0
-        if slope > 0:
-            return min(self._cruise, self._climb / slope)
-        if slope < 0:
-            return min(self._cruise, self._descent / -slope)
-        return self._cruise
+        if length == 0:
+            return self._cruise
+        horizontal = float(np.linalg.norm(delta[:2])) / length
+        vertical = float(delta[2]) / length
+        limits = [self._cruise / horizontal] if horizontal > 1e-9 else []
+        if vertical > 1e-9:
+            limits.append(self._climb / vertical)
+        elif vertical < -1e-9:
+            limits.append(self._descent / -vertical)
+        return min(limits)
 
     def _hold(self, duration: float, carry: float) -> Phase:
         """Stay put for ``duration`` [s]."""

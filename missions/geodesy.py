@@ -1,0 +1,46 @@
+"""Local ENU to WGS84 (pymap3d), and the rounding MAVLink's integer coordinates need.
+
+MISSION_ITEM_INT carries latitude and longitude as integers of 1e-7 degree (about 1.1 cm).
+We round half away from zero, never truncate: truncation biases every coordinate towards
+the equator and the prime meridian, by up to 1.1 cm, differently for each drone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pymap3d
+from numpy.typing import ArrayLike, NDArray
+
+from missions.options import GeodeticOrigin
+
+#: Degrees per unit of a MAVLink integer coordinate.
+DEGREE_UNIT = 1e-7
+
+
+def geodetic_from_enu(
+    enu: ArrayLike, origin: GeodeticOrigin
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(latitude [deg], longitude [deg], altitude AMSL [m]) of ENU points (..., 3)."""
+    enu = np.asarray(enu, dtype=float)
+    lat, lon, alt = pymap3d.enu2geodetic(
+        enu[..., 0], enu[..., 1], enu[..., 2], origin.latitude, origin.longitude, origin.altitude
+    )
+    return np.asarray(lat), np.asarray(lon), np.asarray(alt)
+
+
+def enu_from_geodetic(
+    latitude: ArrayLike, longitude: ArrayLike, altitude: ArrayLike, origin: GeodeticOrigin
+) -> NDArray[np.float64]:
+    """ENU points (..., 3) of geodetic coordinates (degrees, metres AMSL)."""
+    e, n, u = pymap3d.geodetic2enu(
+        latitude, longitude, altitude, origin.latitude, origin.longitude, origin.altitude
+    )
+    return np.stack([np.asarray(e), np.asarray(n), np.asarray(u)], axis=-1)
+
+
+def degrees_to_int(degrees: ArrayLike) -> NDArray[np.int64]:
+    """Degrees as 1e-7 degree integers, rounded half away from zero."""
+    # Snap to 1e-6 units first: 47.39775 deg is 473977499.99999994 units in binary floating
+    # point, and must round up like the decimal it stands for.
+    scaled = np.round(np.asarray(degrees, dtype=float) / DEGREE_UNIT, 6)
+    return (np.sign(scaled) * np.floor(np.abs(scaled) + 0.5)).astype(np.int64)

@@ -1,0 +1,56 @@
+"""Mission options: where, how fast, how to start and end (design.md section 8)."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class GeodeticOrigin(BaseModel):
+    """The task frame's origin: ENU (x east, y north, z up) starts here."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    latitude: float = Field(47.3977, ge=-90, le=90, description="[deg] WGS84")
+    longitude: float = Field(8.5456, ge=-180, le=180, description="[deg] WGS84")
+    altitude: float = Field(488.0, ge=-500, le=9000, description="[m] AMSL of z = 0")
+
+
+class MissionOptions(BaseModel):
+    """How a planned path becomes three drone missions.
+
+    Defaults: the quasi-static limits of design.md section 8 (drone speed 0.5 m/s, platform
+    angular rate 0.2 rad/s) and an acceleration limit of 0.25 m/s^2, half of what a copter's
+    position controller allows by default, so that speed changes at waypoints stay gentle
+    for a hanging load.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    origin: GeodeticOrigin = Field(default_factory=GeodeticOrigin)
+    max_drone_speed: float = Field(0.5, gt=0, le=5.0, description="[m/s]")
+    max_angular_rate: float = Field(0.2, gt=0, le=2.0, description="platform [rad/s]")
+    max_acceleration: float = Field(0.25, gt=0, le=5.0, description="drones [m/s^2]")
+    check_resolution: float = Field(
+        0.1, gt=0, le=5.0, description="time step [s] at which legs are checked"
+    )
+    max_platform_deviation: float = Field(
+        0.05, gt=0, description="[m] reconstructed vs planned platform point P along legs"
+    )
+    max_cable_length_error: float = Field(
+        0.05, gt=0, description="[m] how far straight legs leave the planned cable geometry"
+    )
+    max_leg_duration: float = Field(
+        30.0, gt=0, description="[s] longest leg; long legs are fine, but keep progress visible"
+    )
+    acceptance_radius: float = Field(0.2, gt=0, description="NAV_WAYPOINT param2 [m]")
+    start_hold: int = Field(
+        5, ge=0, le=3600, description="[s] hold at the start position after takeoff (integer)"
+    )
+    start_time_utc: datetime | None = Field(
+        None, description="optional NAV_DELAY barrier: all drones leave at this UTC time (1 s)"
+    )
+    end: Literal["hold", "land"] = Field("hold", description="after the last waypoint")
+    altitude_frame: Literal["relative", "amsl"] = "relative"

@@ -1,0 +1,111 @@
+"""A manipulation task: system, scene, start and goal, planner and mission options.
+
+The same schema is the body of ``POST /v1/tasks`` and the file ``flycrane plan`` reads.
+:func:`resolve_task` turns it into a planning problem and checks start and goal, raising
+errors that name the field (preset names, system or scene fields) or the violated
+constraint and colliding bodies (start and goal).
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from flycrane.errors import FieldProblem, InputError
+from flycrane.planning.planners import PlannerOptions
+from flycrane.planning.poses import configuration_from_pose
+from flycrane.planning.problem import PlanningProblem
+from flycrane.scene import Configuration, SceneSpec, load_scene
+from flycrane.system import SystemSpec, problems_from_validation_error, system_preset
+from missions.options import MissionOptions
+
+Vec3 = tuple[float, float, float]
+
+
+class PlatformPose(BaseModel):
+    """A start or goal given as the platform's pose; the alphas of least cost are chosen."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    position: Vec3 = Field(description="P [m], world frame")
+    orientation: Vec3 = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
+
+
+class TaskSpec(BaseModel):
+    """Everything needed to plan and export a FlyCrane manipulation."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    name: str = Field("", max_length=200)
+    system: str | SystemSpec = Field("benchmark", description="preset name or description")
+    scene: str | SceneSpec = Field("rescue", description="preset name or inline scene")
+    start: Configuration | PlatformPose | None = Field(None, description="None: the scene's")
+    goal: Configuration | PlatformPose | None = Field(None, description="None: the scene's")
+    planner: PlannerOptions = Field(default_factory=PlannerOptions)
+    mission: MissionOptions = Field(default_factory=MissionOptions)
+
+
+@dataclass(frozen=True)
+class ResolvedTask:
+    """A task made concrete: the problem and checked start and goal configurations."""
+
+    task: TaskSpec
+    problem: PlanningProblem
+    start: NDArray[np.float64]
+    goal: NDArray[np.float64]
+
+
+def task_from_dict(data: dict, source: str | None = None) -> TaskSpec:
+    """Validate a mapping as a task, raising :class:`InputError` naming the field."""
+    try:
+        return TaskSpec.model_validate(data)
+    except ValidationError as error:
+        raise InputError(problems_from_validation_error(error), source) from None
+
+
+def load_task(path: str | Path) -> tuple[TaskSpec, Path]:
+    """A task from a .json or .toml file, and the directory relative paths start from."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+        data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
+    except (OSError, ValueError) as error:
+        raise InputError([FieldProblem("file", str(error))], str(path)) from None
+    return task_from_dict(data, str(path)), path.parent
+
+
+def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
+    """Build the problem and check start and goal (every error names its field).
+
+    Raises
+    ------
+    InputError
+        Unknown preset, or a start/goal of the wrong shape.
+    InvalidConfigurationError
+        Start or goal infeasible, out of bounds or in collision (``what`` says which).
+    """
+    system = system_preset(task.system) if isinstance(task.system, str) else task.system
+    if isinstance(task.scene, str):
+        try:
+            scene, scene_dir = load_scene(task.scene)
+        except InputError as error:
+            raise InputError([FieldProblem("scene", p.reason) for p in error.problems]) from None
+    else:
+        scene, scene_dir = task.scene, base_dir
+    problem = PlanningProblem.from_scene(scene, system, scene_dir)
+    ends = []
+    for what, given, default in (("start", task.start, scene.start), ("goal", task.goal, scene.goal)):
+        if isinstance(given, PlatformPose):
+            q = configuration_from_pose(problem.space, problem.validity, given.position,
+                                        given.orientation, what)  # fmt: skip
+        else:
+            q = np.array(default if given is None else given, dtype=float)
+            problem.validity.require_valid(q, what)
+        ends.append(q)
+    return ResolvedTask(task, problem, ends[0], ends[1])

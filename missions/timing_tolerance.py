@@ -1,0 +1,121 @@
+"""How much timing error between the drones a mission tolerates (design.md section 9).
+
+Timing, not geometry, is the weak link of waypoint missions for a cable-suspended load:
+ArduCopter SITL started three copters 0.3 s apart and stretched a 24 s track to 33 s. So for
+every mission set we compute, by bisection:
+
+- **start offset**: the largest delay ``dt`` such that, whichever one or two drones start
+  ``dt`` late (all six cases), the configuration reconstructed from the three drones'
+  positions stays valid (feasible, collision-free) at every check time of the flight;
+- **speed mismatch**: the largest ``eps`` such that any one drone flying all its legs at
+  ``(1 + eps)`` or ``(1 - eps)`` times the planned speed keeps the load valid.
+
+Late drones wait at their start; drones that finish early hold their last waypoint. The
+bisection assumes a larger error is never safer, and stops at ``TOLERANCE_RESOLUTION``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from flycrane.cable_system import CableSystem
+from flycrane.direct_kinematics import configuration_from_drone_positions
+from missions.options import MissionOptions
+from missions.tracks import Track
+from missions.waypoints import WaypointPlan, drone_positions_at, planned_configurations
+
+Validity = Callable[[NDArray[np.float64]], NDArray[np.bool_]]
+
+#: Bisection stops when the bracket is this small, relative to its search range.
+TOLERANCE_RESOLUTION = 1e-3
+
+
+@dataclass(frozen=True)
+class TimingTolerance:
+    """Largest tolerated start offset [s] and speed mismatch [fraction], with worst cases."""
+
+    start_offset: float
+    start_offset_case: str  #: which drones late, at the limit
+    speed_mismatch: float
+    speed_mismatch_case: str  #: which drone, faster or slower, at the limit
+    searched_offset: float  #: the offset search range [s]
+    searched_mismatch: float  #: the mismatch search range
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def flight_is_safe(
+    system: CableSystem,
+    track: Track,
+    plan: WaypointPlan,
+    validity: Validity,
+    clock: Callable[[NDArray], NDArray],
+    step: float,
+) -> bool:
+    """Whether drones flying the plan on warped clocks keep the load valid throughout.
+
+    ``clock(t)`` maps mission time t (C,) to each drone's plan time, shape (C, 3).
+    """
+    end = plan.time[-1]
+    t = np.arange(0.0, 2.0 * end + step, step)
+    local = clock(t)
+    drones = np.stack(
+        [drone_positions_at(plan.time, plan.drones, local[:, j])[:, j] for j in range(3)], axis=1
+    )
+    # Start the reconstruction from the plan at the drones' mean plan time.
+    initial = planned_configurations(track, np.clip(local.mean(axis=1), 0.0, end))
+    rebuilt = configuration_from_drone_positions(system, drones, initial=initial)
+    return bool(np.all(rebuilt.converged & validity(rebuilt.q)))
+
+
+def _largest_safe(safe: Callable[[float], bool], limit: float) -> float:
+    """Largest x in [0, limit] with safe(x), by bisection (0 if even x = 0 is unsafe)."""
+    if safe(limit):
+        return limit
+    low, high = 0.0, limit
+    while high - low > TOLERANCE_RESOLUTION * limit:
+        mid = (low + high) / 2
+        low, high = (mid, high) if safe(mid) else (low, mid)
+    return low
+
+
+def timing_tolerance(
+    system: CableSystem,
+    track: Track,
+    plan: WaypointPlan,
+    validity: Validity,
+    options: MissionOptions,
+    max_offset: float = 5.0,
+    max_mismatch: float = 0.5,
+) -> TimingTolerance:
+    """Timing tolerance of a waypoint plan (module docstring)."""
+    step = options.check_resolution
+
+    def safe(clock: Callable[[NDArray], NDArray]) -> bool:
+        return flight_is_safe(system, track, plan, validity, clock, step)
+
+    offsets = []
+    for late in [c for n in (1, 2) for c in combinations(range(3), n)]:
+        mask = np.isin(np.arange(3), late)
+        found = _largest_safe(
+            lambda d, mask=mask: safe(lambda t: t[:, None] - d * mask), max_offset
+        )
+        offsets.append((found, "drones " + " and ".join(str(j + 1) for j in late) + " late"))
+    mismatches = []
+    for j in range(3):
+        for sign, word in ((1.0, "faster"), (-1.0, "slower")):
+            mask = np.arange(3) == j
+            found = _largest_safe(
+                lambda e, mask=mask, sign=sign: safe(lambda t: t[:, None] * (1 + sign * e * mask)),
+                max_mismatch,
+            )
+            mismatches.append((found, f"drone {j + 1} {word}"))
+    offset, offset_case = min(offsets)
+    mismatch, mismatch_case = min(mismatches)
+    return TimingTolerance(offset, offset_case, mismatch, mismatch_case, max_offset, max_mismatch)
