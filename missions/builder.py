@@ -38,8 +38,9 @@ from missions.waypoints import WaypointPlan
 #: Speed changes smaller than this are not worth a DO_CHANGE_SPEED item [m/s] (a leg of
 #: 10 s would take 10 ms longer or shorter).
 SPEED_EPSILON = 0.001
-#: ArduCopter ignores horizontal speeds below WPNAV_WP_SPEED_MIN (10 cm/s in 4.5); such
-#: legs keep the previous speed limit and may run early (flagged in the summary).
+#: ArduCopter ignores horizontal speeds below WPNAV_WP_SPEED_MIN (10 cm/s in 4.5) and keeps
+#: the previous, faster one. A leg that also climbs or descends is still timed by its
+#: vertical speed; a level one may run early (flagged in the summary).
 ARDUCOPTER_MIN_GROUND_SPEED = 0.10
 #: DO_CHANGE_SPEED speed types (param1).
 GROUND_SPEED, CLIMB_SPEED, DESCENT_SPEED = 1, 2, 3
@@ -59,9 +60,10 @@ class LegSpeeds:
         return cls(np.linalg.norm(delta[..., :2], axis=-1) / duration, delta[..., 2] / duration)
 
     def slow_legs(self) -> list[tuple[int, int]]:
-        """(drone, leg) pairs, 1-based, whose horizontal speed ArduCopter would ignore."""
-        moving = self.horizontal > 1e-3
-        slow = moving & (self.horizontal < ARDUCOPTER_MIN_GROUND_SPEED)
+        """(drone, leg) pairs, 1-based, that ArduCopter may fly faster than planned: level
+        legs whose ground speed is below its minimum (module constants)."""
+        level = np.abs(self.vertical) <= 1e-6
+        slow = level & (self.horizontal > 1e-6) & (self.horizontal < ARDUCOPTER_MIN_GROUND_SPEED)
         return [(int(j) + 1, int(k) + 1) for k, j in zip(*np.nonzero(slow), strict=True)]
 
 

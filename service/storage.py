@@ -56,6 +56,9 @@ class TaskRow(_Base):
     result: Mapped[dict | None] = mapped_column(JSON, nullable=True)
     error: Mapped[str | None] = mapped_column(Text, nullable=True)
     cancel_requested: Mapped[bool] = mapped_column(Boolean, default=False)
+    #: Incremented each time the task is (re)queued; a job only writes while its attempt is
+    #: current, so a job orphaned by a restart cannot overwrite its successor's results.
+    attempt: Mapped[int] = mapped_column(Integer, default=0)
 
 
 class UploadRow(_Base):
@@ -80,6 +83,7 @@ class TaskRecord:
     result: dict[str, Any] | None
     error: str | None
     cancel_requested: bool
+    attempt: int
 
     @classmethod
     def of(cls, row: TaskRow) -> TaskRecord:
@@ -87,6 +91,7 @@ class TaskRecord:
             id=row.id, status=TaskStatus(row.status), created_at=row.created_at,
             updated_at=row.updated_at, request=row.request, progress=row.progress,
             result=row.result, error=row.error, cancel_requested=row.cancel_requested,
+            attempt=row.attempt,
         )  # fmt: skip
 
 
@@ -120,7 +125,8 @@ class TaskStore:
             yield session
 
     def create(self, request: dict[str, Any]) -> TaskRecord:
-        row = TaskRow(id=uuid.uuid4().hex, status=TaskStatus.QUEUED.value, request=request)
+        row = TaskRow(id=uuid.uuid4().hex, status=TaskStatus.QUEUED.value, request=request,
+                      attempt=0, cancel_requested=False)
         with self._session() as session:
             session.add(row)
         return TaskRecord.of(row)
@@ -144,16 +150,21 @@ class TaskStore:
             rows = session.scalars(query).all()
             return [TaskRecord.of(r) for r in rows], int(session.scalar(count) or 0)
 
-    def update(self, task_id: str, **fields: Any) -> TaskRecord | None:
+    def update(
+        self, task_id: str, expect_attempt: int | None = None, **fields: Any
+    ) -> TaskRecord | None:
         """Set columns of a task (``status`` may be a TaskStatus); returns the new record.
 
         A finished task keeps its status: a late progress report or a cancel racing a
-        completion cannot reopen it.
+        completion cannot reopen it. With ``expect_attempt``, nothing is written unless the task
+        is still at that attempt (a job superseded by a restart writes nothing).
         """
         with self._session() as session:
-            row = session.get(TaskRow, task_id)
+            row = session.get(TaskRow, task_id, with_for_update=True)
             if row is None:
                 return None
+            if expect_attempt is not None and row.attempt != expect_attempt:
+                return TaskRecord.of(row)
             if TaskStatus(row.status).finished and "status" in fields:
                 return TaskRecord.of(row)
             for name, value in fields.items():

@@ -1,0 +1,23 @@
+"""/v1/statics: the statics of configurations, for quick what-ifs."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter
+
+from flycrane.cable_system import CableSystem
+from flycrane.statics import evaluate_statics
+from flycrane.summary import statics_summary
+from flycrane.system import system_preset
+from service.schemas import StaticsCreate
+
+router = APIRouter(prefix="/v1/statics", tags=["statics"])
+
+
+@router.post("")
+def statics(body: StaticsCreate) -> dict:
+    """Tensions, tension ranges, thrusts, margins, cost and violated constraints of each q."""
+    spec = system_preset(body.system) if isinstance(body.system, str) else body.system
+    system = CableSystem.from_spec(spec)
+    report = evaluate_statics(system, body.q)
+    return {"results": [statics_summary(system, report, body.cost_form, row)
+                        for row in range(len(body.q))]}  # fmt: skip

@@ -1,0 +1,100 @@
+"""Request and response schemas of the HTTP API (``XCreate`` / ``XPublic`` families).
+
+The task body itself is :class:`missions.task.TaskSpec`, shared with ``flycrane plan``.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from flycrane.cost import CostForm
+from flycrane.system import SystemSpec
+from service.storage import TaskRecord, TaskStatus
+
+Configuration = tuple[float, float, float, float, float, float, float, float, float]
+
+
+class TaskAccepted(BaseModel):
+    id: str
+    url: str
+    status: TaskStatus
+
+
+class TaskPublic(BaseModel):
+    """A task as the API shows it."""
+
+    id: str
+    url: str
+    name: str
+    status: TaskStatus
+    created_at: datetime
+    updated_at: datetime
+    progress: dict[str, Any] | None = Field(None, description="while queued or running")
+    error: str | None = None
+    cancel_requested: bool = False
+    result: dict[str, Any] | None = Field(
+        None, description="planner status and statistics, path metrics, mission summary"
+    )
+    artifacts: dict[str, str] = Field(default_factory=dict, description="name -> URL")
+
+    @classmethod
+    def of(cls, record: TaskRecord, base_url: str) -> TaskPublic:
+        url = f"{base_url}v1/tasks/{record.id}"
+        files = (record.result or {}).get("artifacts", {})
+        artifacts = {name: f"{url}/artifacts/{name}" for name in files.values()}
+        if files:
+            artifacts["bundle.zip"] = f"{url}/bundle.zip"
+        return cls(
+            id=record.id, url=url, name=record.request.get("name", ""), status=record.status,
+            created_at=record.created_at, updated_at=record.updated_at,
+            progress=None if record.status.finished else record.progress, error=record.error,
+            cancel_requested=record.cancel_requested, result=record.result, artifacts=artifacts,
+        )  # fmt: skip
+
+
+class TaskPage(BaseModel):
+    items: list[TaskPublic]
+    total: int
+    offset: int
+    limit: int
+
+
+class StaticsCreate(BaseModel):
+    """A what-if: the statics of configurations of a system."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    system: str | SystemSpec = "benchmark"
+    q: list[Configuration] = Field(min_length=1, max_length=1000)
+    cost_form: CostForm = CostForm.NORMALIZED
+
+
+class UploadCreate(BaseModel):
+    """Vehicle connection strings, one per drone (drone 1 first)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    vehicles: tuple[str, str, str] = Field(
+        description='e.g. "udpout:127.0.0.1:14550" or "/dev/ttyACM0:57600"'
+    )
+
+
+class VehicleUpload(BaseModel):
+    drone: int
+    vehicle: str
+    ok: bool
+    detail: str
+
+
+class UploadPublic(BaseModel):
+    ok: bool
+    vehicles: list[VehicleUpload]
+
+
+class Health(BaseModel):
+    status: Literal["ok"]
+    tasks_in_flight: int
+    workers: int
