@@ -12,7 +12,6 @@ from enum import StrEnum
 
 import numpy as np
 
-from flycrane.errors import FlyCraneError
 from flycrane.statics import StaticsReport
 
 
@@ -59,31 +58,16 @@ def violations(report: StaticsReport, row: int = 0) -> list[Violation]:
     if report.singular[row]:
         return [Violation(Constraint.SINGULAR, 0, np.inf, np.inf, -np.inf)]
     found: list[Violation] = []
-    for i in np.flatnonzero(report.slack_margin[row] <= 0):
-        low = report.tension_low[row, i]
-        found.append(
-            Violation(Constraint.SLACK, i + 1, low, low - report.slack_margin[row, i],
-                      report.slack_margin[row, i])
-        )  # fmt: skip
-    for i in np.flatnonzero(report.overload_margin[row] <= 0):
-        high = report.tension_high[row, i]
-        found.append(
-            Violation(Constraint.OVERLOAD, i + 1, high, high + report.overload_margin[row, i],
-                      report.overload_margin[row, i])
-        )  # fmt: skip
-    for k in np.flatnonzero(report.thrust_margin[row] <= 0):
-        bound = report.thrust_bound[row, k]
-        found.append(
-            Violation(Constraint.THRUST, k + 1, bound, bound + report.thrust_margin[row, k],
-                      report.thrust_margin[row, k])
-        )  # fmt: skip
+    checks = (
+        (Constraint.SLACK, report.slack_margin[row], report.tension_low[row], -1.0),
+        (Constraint.OVERLOAD, report.overload_margin[row], report.tension_high[row], 1.0),
+        (Constraint.THRUST, report.thrust_margin[row], report.thrust_bound[row], 1.0),
+    )
+    for constraint, margins, values, side in checks:
+        for i in np.flatnonzero(margins <= 0):
+            # the limit sits a margin beyond the value: below it for slack, above otherwise
+            limit = values[i] + side * margins[i]
+            found.append(
+                Violation(constraint, int(i) + 1, float(values[i]), float(limit), float(margins[i]))
+            )
     return found
-
-
-class InfeasibleConfigurationError(FlyCraneError):
-    """A configuration that must be feasible (a start, a goal, a waypoint) is not."""
-
-    def __init__(self, what: str, found: list[Violation]) -> None:
-        self.what = what
-        self.violations = tuple(found)
-        super().__init__(f"{what} is infeasible: " + "; ".join(str(v) for v in found))

@@ -1,0 +1,44 @@
+"""A real application (real worker processes) on a temporary data directory."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from fastapi.testclient import TestClient
+
+from service.app import create_app
+from service.settings import Settings
+
+FINISHED = {"done", "failed", "cancelled"}
+
+
+@contextmanager
+def running_service(data_dir: Path, **settings) -> Iterator[TestClient]:
+    """The service with its lifespan (database, worker pool, resumption) running."""
+    app = create_app(Settings(data_dir=data_dir, workers=1, **settings))
+    with TestClient(app) as client:
+        yield client
+
+
+def wait_finished(client: TestClient, task_id: str, timeout: float = 120.0) -> dict:
+    """Poll a task until it is done, failed or cancelled."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        task = client.get(f"/v1/tasks/{task_id}").json()
+        if task["status"] in FINISHED:
+            return task
+        time.sleep(0.3)
+    raise AssertionError(f"task {task_id} not finished after {timeout} s: {task}")
+
+
+def wait_status(client: TestClient, task_id: str, statuses: set[str], timeout: float = 60.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        task = client.get(f"/v1/tasks/{task_id}").json()
+        if task["status"] in statuses:
+            return task
+        time.sleep(0.1)
+    raise AssertionError(f"task {task_id} never reached {statuses}: {task}")

@@ -1,0 +1,97 @@
+"""Bad input gets the right status and a message naming the problem; nothing is stored."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.service.conftest import running_service
+
+RESCUE_START = [0, 0, 0.45, 0, 0, np.pi / 2, 1, 1, 1]
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory):
+    with running_service(tmp_path_factory.mktemp("errors"), max_request_bytes=20_000) as c:
+        yield c
+
+
+@pytest.mark.parametrize(
+    ("body", "location", "message"),
+    [
+        ({"system": "nonesuch"}, ["body", "system"], "unknown preset 'nonesuch'"),
+        ({"scene": "atlantis"}, ["body", "scene"], "no scene 'atlantis'"),
+        ({"system": {"platform_mass": -1}}, ["body", "system", "platform_mass"], "greater than 0"),
+        ({"system": {"perturbation": {"matrix": (-np.eye(6)).tolist()}}},
+         ["body", "system", "perturbation", "matrix"], "positive definite"),  # fmt: skip
+        ({"start": [*RESCUE_START[:6], 1.45, 1.45, 1.45]}, ["body", "start"], "lowest tension"),
+        ({"goal": [0, 0, 7.0, 0, 0, 0, 1, 1, 1]}, ["body", "goal"], "footbridge hits"),
+        ({"planner": {"time_budget": 10_000}}, ["body", "planner", "time_budget"], "at most"),
+        ({"planner": {"algorithm": "astar"}}, ["body", "planner", "algorithm"], "trrt"),
+        ({"colour": "red"}, ["body", "colour"], "not permitted"),
+    ],
+)
+def test_bad_task_is_refused_naming_the_field(client, body, location, message):
+    before = client.get("/v1/tasks").json()["total"]
+    response = client.post("/v1/tasks", json=body)
+    assert response.status_code == 422, response.text
+    details = response.json()["detail"]
+    assert any(d["loc"][: len(location)] == location and message in d["msg"] for d in details), (
+        details
+    )
+    assert client.get("/v1/tasks").json()["total"] == before
+
+
+def test_malformed_json_and_oversized_body(client):
+    response = client.post("/v1/tasks", content=b'{"scene": ', headers={"content-type": "application/json"})
+    assert response.status_code == 422 and "JSON" in response.text
+    big = {"name": "x" * 100, "scene": {"bounds": {"position_low": [0, 0, 0], "position_high": [1, 1, 1]},
+           "start": RESCUE_START, "goal": RESCUE_START,
+           "obstacles": [{"kind": "sphere", "radius": 1.0}] * 2000}}  # fmt: skip
+    response = client.post("/v1/tasks", json=big)
+    assert response.status_code == 413 and "larger than 20000 bytes" in response.text
+    assert client.get("/v1/tasks").json()["total"] == 0
+
+
+def test_unknown_task_and_artifact(client):
+    assert client.get("/v1/tasks/nope").status_code == 404
+    assert "no task 'nope'" in client.get("/v1/tasks/nope").json()["detail"]
+    assert client.delete("/v1/tasks/nope").status_code == 404
+    assert client.get("/v1/tasks/nope/artifacts/summary.json").status_code == 404
+    response = client.post("/v1/tasks/nope/upload", json={"vehicles": ["udp:127.0.0.1:1"] * 3})
+    assert response.status_code == 404
+
+
+def test_statics_what_if(client):
+    response = client.post("/v1/statics", json={"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1],
+                                                      [0, 0, 5, 0, 0, 0, 1.4, 1.4, 1.4]]})  # fmt: skip
+    assert response.status_code == 200
+    feasible, slack = response.json()["results"]
+    assert feasible["feasible"] and feasible["cables"][0]["nominal_tension"] == pytest.approx(3.11, abs=0.01)
+    assert not slack["feasible"] and slack["violations"][0]["constraint"] == "slack"
+    bad = client.post("/v1/statics", json={"q": [[0, 0, 5]]})
+    assert bad.status_code == 422 and bad.json()["detail"][0]["loc"][:2] == ["body", "q"]
+
+
+def test_presets_health_and_metrics(client):
+    assert "benchmark" in client.get("/v1/presets/systems").json()
+    scenes = client.get("/v1/presets/scenes").json()
+    assert {"rescue", "puzzle"} <= set(scenes)
+    assert scenes["rescue"]["payload"]["shapes"][0]["name"] == "footbridge"
+    assert client.get("/healthz").json()["status"] == "ok"
+    metrics = client.get("/metrics").text
+    assert 'flycrane_tasks{status="done"}' in metrics
+    assert 'flycrane_task_submissions_total{outcome="invalid"}' in metrics
+    assert client.get("/openapi.json").json()["paths"]["/v1/tasks"]["post"]
+
+
+def test_token_guards_mutating_endpoints(tmp_path):
+    with running_service(tmp_path, api_token="s3cret") as client:
+        assert client.post("/v1/tasks", json={"scene": "atlantis"}).status_code == 401
+        wrong = {"Authorization": "Bearer guess"}
+        assert client.post("/v1/tasks", json={}, headers=wrong).status_code == 401
+        assert client.delete("/v1/tasks/x").status_code == 401
+        good = {"Authorization": "Bearer s3cret"}
+        assert client.post("/v1/tasks", json={"scene": "atlantis"}, headers=good).status_code == 422
+        assert client.get("/v1/tasks").status_code == 200  # reading needs no token
+        assert client.post("/v1/statics", json={"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1]]}).status_code == 200

@@ -1,0 +1,145 @@
+"""End to end through HTTP: submit Rescue, poll to done, download and check every artifact,
+upload to three mock autopilots through the API; cancellation; survival of a restart."""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+
+import pytest
+from mcap.reader import make_reader
+from pymavlink import mavwp
+
+from missions.formats import mission_from_json
+from missions.mavlink import MockAutopilot, MockConfig, SimClock
+from missions.mavlink.mock_flight import Geodetic
+from tests.missions.mavlink.conftest import free_udp_port
+from tests.service.conftest import running_service, wait_finished, wait_status
+
+RESCUE = {"name": "rescue e2e", "planner": {"seed": 0, "time_budget": 60}}
+
+
+@pytest.fixture(scope="module")
+def data_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("e2e")
+
+
+@pytest.fixture(scope="module")
+def done(data_dir):
+    """A service that has planned Rescue once (the real pipeline in a real worker)."""
+    with running_service(data_dir) as client:
+        accepted = client.post("/v1/tasks", json=RESCUE)
+        assert accepted.status_code == 202, accepted.text
+        task = wait_finished(client, accepted.json()["id"])
+        yield client, task
+
+
+def test_rescue_is_planned_and_every_artifact_is_served(done, tmp_path):
+    client, task = done
+    assert task["status"] == "done", task["error"]
+    assert task["result"]["planner_status"] == "exact_solution"
+    assert task["result"]["metrics"]["max_cost"] > 0
+    names = set(task["artifacts"])
+    expected = {"path.json", "tracks.json", "mission.mcap", "profile.png", "summary.json",
+                "bundle.zip"} | {f"drone{k}.{ext}" for k in (1, 2, 3)
+                                 for ext in ("waypoints", "plan", "mission.json")}  # fmt: skip
+    assert names == expected
+    for k in (1, 2, 3):
+        text = client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.waypoints").text
+        path = tmp_path / f"drone{k}.waypoints"
+        path.write_text(text)
+        loader = mavwp.MAVWPLoader()
+        stored = mission_from_json(
+            client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.mission.json").json()
+        )
+        assert loader.load(str(path)) == len(stored.items)
+        plan = client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.plan").json()
+        assert plan["fileType"] == "Plan" and len(plan["mission"]["items"]) == len(stored.items) - 1
+    log = client.get(f"/v1/tasks/{task['id']}/artifacts/mission.mcap").content
+    reader = make_reader(io.BytesIO(log))
+    topics = {channel.topic for channel in reader.get_summary().channels.values()}
+    assert {"/scene", "/tf", "/drone1/fix", "/annotations/tensions"} <= topics
+    bundle = zipfile.ZipFile(io.BytesIO(client.get(f"/v1/tasks/{task['id']}/bundle.zip").content))
+    assert set(bundle.namelist()) == expected - {"bundle.zip"}
+    assert client.get(f"/v1/tasks/{task['id']}/artifacts/..%2Fflycrane.db").status_code == 404
+
+
+def test_listing_pages_and_filters(done):
+    client, task = done
+    page = client.get("/v1/tasks", params={"status": "done", "limit": 1}).json()
+    assert page["total"] >= 1 and page["items"][0]["id"] == task["id"]
+    assert client.get("/v1/tasks", params={"status": "cancelled"}).json()["total"] == 0
+    assert client.get("/v1/tasks", params={"status": "bogus"}).status_code == 422
+
+
+def test_upload_to_three_mock_autopilots_through_the_api(done):
+    client, task = done
+    clock = SimClock(speedup=5.0)
+    mocks, addresses = [], []
+    for k in (1, 2, 3):
+        stored = mission_from_json(
+            client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.mission.json").json()
+        )
+        home = stored.items[0]
+        port = free_udp_port()
+        config = MockConfig(system_id=k, home=Geodetic(home.x * 1e-7, home.y * 1e-7, home.z))
+        mocks.append(MockAutopilot(f"udpin:127.0.0.1:{port}", config, clock).start())
+        addresses.append(f"udpout:127.0.0.1:{port}")
+    try:
+        response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": addresses})
+        assert response.status_code == 200, response.text
+        assert response.json()["ok"] and all(v["ok"] for v in response.json()["vehicles"])
+        for k, mock in enumerate(mocks, start=1):
+            stored = mission_from_json(
+                client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.mission.json").json()
+            )
+            held = mock.mission
+            assert [(i.command, i.x, i.y) for i in held[1:]] == [
+                (int(i.command), i.x, i.y) for i in stored.items[1:]
+            ]
+    finally:
+        for mock in mocks:
+            mock.stop()
+
+
+def test_upload_refusals(done):
+    client, task = done
+    before = client.get(f"/v1/tasks/{task['id']}").json()
+    outside = ["udpout:10.1.2.3:14550", "udpout:127.0.0.1:14551", "udpout:127.0.0.1:14552"]
+    response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": outside})
+    assert response.status_code == 403 and "10.1.2.3" in response.json()["detail"]
+    silent = [f"udpout:127.0.0.1:{free_udp_port()}" for _ in range(3)]
+    response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": silent})
+    assert response.status_code == 502
+    assert not any(v["ok"] for v in response.json()["vehicles"])
+    after = client.get(f"/v1/tasks/{task['id']}").json()
+    assert (after["status"], after["result"]) == (before["status"], before["result"])
+
+
+def test_cancel_stops_a_running_planner(tmp_path):
+    # Puzzle as first specified is not solved in minutes: the planner is still running.
+    with running_service(tmp_path) as client:
+        accepted = client.post("/v1/tasks", json={"scene": "puzzle",
+                                                  "planner": {"time_budget": 300}})  # fmt: skip
+        task_id = accepted.json()["id"]
+        wait_status(client, task_id, {"planning"})
+        assert client.delete(f"/v1/tasks/{task_id}").json()["cancel_requested"]
+        task = wait_finished(client, task_id, timeout=30)
+        assert task["status"] == "cancelled"
+        assert task["result"]["planner_status"] == "cancelled"
+
+
+def test_tasks_survive_a_restart(done, data_dir):
+    _, task = done
+    # A second instance on the same data directory serves the finished task and its files,
+    # and a task that was queued when the first stopped is resumed and completed.
+    with running_service(data_dir) as client:
+        queued = client.post("/v1/tasks", json={**RESCUE, "name": "interrupted"}).json()["id"]
+    with running_service(data_dir) as client:
+        assert client.get(f"/v1/tasks/{task['id']}").json()["status"] == "done"
+        summary = client.get(f"/v1/tasks/{task['id']}/artifacts/summary.json").json()
+        assert summary["status"] == "done"
+        resumed = wait_finished(client, queued)
+        assert resumed["status"] == "done", resumed["error"]
+        assert json.loads(client.get(f"/v1/tasks/{queued}/artifacts/summary.json").text)
