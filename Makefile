@@ -12,9 +12,9 @@ $(BIN)/.installed: pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@
 
-# The main job on embedded defaults.
+# The main job on embedded defaults: plan the Rescue benchmark and export its missions.
 run: $(BIN)/.installed
-	$(BIN)/flycrane statics
+	$(BIN)/flycrane plan --out out/rescue
 
 # The whole default test suite (CI runs exactly this through .ci/run).
 test: $(BIN)/.installed
