@@ -97,3 +97,45 @@ def test_invalid_start_error_names_constraints_and_bodies():
     outside = problem.start.copy()
     outside[0] = 30.0
     assert "x = 30 not in [-12, 12]" in str(problem.validity.explain(outside))
+
+
+def test_puzzle_witness_path_is_valid():
+    """A path exists: the stored witness threads the long bar at a tilt (scene docstring)."""
+    import json  # noqa: PLC0415
+
+    from flycrane.scene import SCENES_DIR  # noqa: PLC0415
+
+    problem = PlanningProblem.named("puzzle")
+    path = np.array(json.loads((SCENES_DIR / "puzzle_witness.json").read_text())["path"])
+    np.testing.assert_allclose(path[0], problem.start, atol=1e-12)
+    np.testing.assert_allclose(path[-1], problem.goal, atol=1e-12)
+    assert all(problem.validity.motion_is_valid(a, b) for a, b in zip(path[:-1], path[1:]))
+    assert path[:, 4].max() > 0.2
+
+
+def test_puzzle_has_no_level_passage():
+    """With zero tilt the long bar is horizontal; to get below the slab it must, at some
+    moment, lie at the slab's mid-height. There every position over the hole and every
+    heading collides (brute force), so no path exists without tilt."""
+    problem = PlanningProblem.named("puzzle")
+    slab_mid = 4.1
+    x, y, sigma = np.meshgrid(np.linspace(-0.6, 0.6, 13), np.linspace(-0.3, 0.3, 7),
+                              np.linspace(0, np.pi, 90, endpoint=False), indexing="ij")  # fmt: skip
+    q = np.zeros((x.size, 9))
+    q[:, 0], q[:, 1], q[:, 5] = x.ravel(), y.ravel(), sigma.ravel()
+    q[:, 2] = slab_mid + 1.6  # the long bar hangs 1.6 m below P
+    q[:, 6:] = 1.0
+    assert not problem.validity.collision.collision_free(q).any()
+
+
+def test_puzzle_is_not_solved_without_tilt():
+    from flycrane.planning.planners import PlannerOptions, plan  # noqa: PLC0415
+
+    problem = PlanningProblem.named("puzzle")
+    level = problem.scene.model_copy(
+        update={"bounds": problem.scene.bounds.model_copy(update={"max_tilt": 1e-9})}
+    )
+    flat = PlanningProblem.from_scene(level)
+    outcome = plan(flat.space, flat.validity, flat.start, flat.goal,
+                   PlannerOptions(time_budget=10.0, seed=1))  # fmt: skip
+    assert not outcome.result.status.solved
