@@ -32,7 +32,7 @@ def main() -> None:
             seconds = time.perf_counter() - clock
             print(f"{name:7s} batch {batch:3d}: {len(q) / seconds:9,.0f} configurations/s "
                   f"({1e6 * seconds / len(q):6.1f} us each), "
-                  f"{np.concatenate(free).mean():.0%} collision-free")  # fmt: skip
+                  f"{np.concatenate(free).mean():.0%} collision-free")
 
 
 if __name__ == "__main__":

@@ -46,10 +46,22 @@ def main() -> int:
     data = tempfile.mkdtemp(prefix="flycrane-load-")
     env = {**os.environ, "FLYCRANE_MAX_QUEUED_TASKS": str(args.queue)}
     server = subprocess.Popen(
-        [sys.executable, "-m", "flycrane.cli", "serve", "--port", str(port), "--data-dir", data,
-         "--workers", str(args.workers)],
-        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "flycrane.cli",
+            "serve",
+            "--port",
+            str(port),
+            "--data-dir",
+            data,
+            "--workers",
+            str(args.workers),
+        ],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     base = f"http://127.0.0.1:{port}"
     try:
         for _ in range(100):
@@ -93,18 +105,24 @@ def main() -> int:
             thread.start()
         for thread in threads:
             thread.join()
-        listed = {t["id"] for t in httpx.get(f"{base}/v1/tasks", params={"limit": 500}).json()["items"]}
+        listed = {
+            t["id"] for t in httpx.get(f"{base}/v1/tasks", params={"limit": 500}).json()["items"]
+        }
         for task_id in accepted:
             httpx.delete(f"{base}/v1/tasks/{task_id}", timeout=30)
         done = httpx.get(f"{base}/v1/tasks", params={"status": "done"}).json()["total"]
         lost = [task_id for task_id in accepted if task_id not in listed]
         ms = 1000 * np.array(latencies)
-        print(f"submissions: {args.tasks} from {args.clients} clients in {submit_seconds:.2f} s: "
-              f"{len(accepted)} accepted (202), {refused} refused (429/503), other {other}")
+        print(
+            f"submissions: {args.tasks} from {args.clients} clients in {submit_seconds:.2f} s: "
+            f"{len(accepted)} accepted (202), {refused} refused (429/503), other {other}"
+        )
         print(f"lost: {len(lost)} of {len(accepted)} accepted tasks missing from the listing")
-        print(f"GET /v1/tasks/{{id}} while {args.workers} workers plan ({planning} planning at "
-              f"start): {len(ms)} requests, p50 {np.percentile(ms, 50):.1f} ms, "
-              f"p95 {np.percentile(ms, 95):.1f} ms, max {ms.max():.1f} ms")
+        print(
+            f"GET /v1/tasks/{{id}} while {args.workers} workers plan ({planning} planning at "
+            f"start): {len(ms)} requests, p50 {np.percentile(ms, 50):.1f} ms, "
+            f"p95 {np.percentile(ms, 95):.1f} ms, max {ms.max():.1f} ms"
+        )
         print(f"tasks done before the cancel: {done}")
         return 0 if not lost and not other else 1
     finally:

@@ -64,15 +64,20 @@ def run_one(scene: str, options: PlannerOptions) -> RunRecord:
     stats = outcome.result.statistics
     metrics = outcome.metrics
     return RunRecord(
-        scene=scene, planner=options.algorithm, seed=options.seed,
-        status=outcome.result.status.value, time=stats.time, nodes=stats.nodes,
-        attempts=stats.expansion_attempts, smoothing_time=outcome.smoothing_time,
+        scene=scene,
+        planner=options.algorithm,
+        seed=options.seed,
+        status=outcome.result.status.value,
+        time=stats.time,
+        nodes=stats.nodes,
+        attempts=stats.expansion_attempts,
+        smoothing_time=outcome.smoothing_time,
         avg_cost=metrics.avg_cost if metrics else None,
         max_cost=metrics.max_cost if metrics else None,
         mechanical_work=metrics.mechanical_work if metrics else None,
         cost_integral=metrics.cost_integral if metrics else None,
         path=tuple(tuple(map(float, q)) for q in outcome.path),
-    )  # fmt: skip
+    )
 
 
 def run_benchmark(
@@ -84,16 +89,21 @@ def run_benchmark(
     base: PlannerOptions | None = None,
 ) -> Iterable[RunRecord]:
     """Submit every (scene, planner, seed) run and yield records as they finish."""
-    from concurrent.futures import as_completed  # noqa: PLC0415
+    from concurrent.futures import as_completed
 
     base = base or PlannerOptions()
     futures = [
         executor.submit(
-            run_one, scene,
-            base.model_copy(update={"algorithm": planner, "seed": seed, "time_budget": time_budget}),
+            run_one,
+            scene,
+            base.model_copy(
+                update={"algorithm": planner, "seed": seed, "time_budget": time_budget}
+            ),
         )
-        for scene in scenes for planner in planners for seed in range(runs)
-    ]  # fmt: skip
+        for scene in scenes
+        for planner in planners
+        for seed in range(runs)
+    ]
     for future in as_completed(futures):
         yield future.result()
 
@@ -111,8 +121,13 @@ def summarize(records: Sequence[RunRecord]) -> list[dict]:
     for scene, planner in keys:
         group = [r for r in records if (r.scene, r.planner) == (scene, planner)]
         solved = [r for r in group if r.solved]
-        row: dict = {"scene": scene, "planner": planner, "runs": len(group),
-                     "solved": len(solved), "success_rate": len(solved) / len(group)}  # fmt: skip
+        row: dict = {
+            "scene": scene,
+            "planner": planner,
+            "runs": len(group),
+            "solved": len(solved),
+            "success_rate": len(solved) / len(group),
+        }
         for key, _, _ in COLUMNS:
             pool = group if key in ("time", "nodes", "attempts") else solved
             values = [float(getattr(r, key)) for r in pool]
@@ -151,8 +166,10 @@ def write_results(records: Sequence[RunRecord], rows: Sequence[dict], out: Path)
     clean = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
     (out / "summary.json").write_text(
         json.dumps(
-            {"table": [{k: clean(v) for k, v in row.items()} for row in rows],
-             "runs": [asdict(r) for r in records]},  # fmt: skip
+            {
+                "table": [{k: clean(v) for k, v in row.items()} for row in rows],
+                "runs": [asdict(r) for r in records],
+            },
             indent=1,
         ),
         encoding="utf-8",

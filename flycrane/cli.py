@@ -12,8 +12,8 @@ import json
 import logging
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 from importlib.metadata import entry_points
+from pathlib import Path
 
 import numpy as np
 
@@ -108,10 +108,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     records = []
     with local_executor(args.workers) as executor:
         for record in run_benchmark(executor, args.scenes, args.planners, args.runs,
-                                    args.budget, base):  # fmt: skip
+                                    args.budget, base):
             records.append(record)
             print(f"[{len(records)}/{total}] {record.scene} {record.planner} seed {record.seed}: "
-                  f"{record.status} in {record.time:.2f} s", file=sys.stderr, flush=True)  # fmt: skip
+                  f"{record.status} in {record.time:.2f} s", file=sys.stderr, flush=True)
     records.sort(key=lambda r: (args.scenes.index(r.scene), args.planners.index(r.planner), r.seed))
     rows = summarize(records)
     write_results(records, rows, out)
@@ -121,9 +121,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             planner: [path_profile(problem.system, problem.space, np.array(r.path))
                       for r in records if r.scene == scene and r.planner == planner and r.solved]
             for planner in args.planners
-        }  # fmt: skip
+        }
         plot_profile_bands(groups, problem.system, out / f"fig6_{scene}.png",
-                           title=f"{scene}: tension and thrust ranges along the paths")  # fmt: skip
+                           title=f"{scene}: tension and thrust ranges along the paths")
     print(format_table(rows))
     print(f"results in {out}/ (runs.csv, summary.json, fig6_<scene>.png)")
     return 0
@@ -143,7 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--q", nargs=9, type=float, metavar="V", default=list(DEFAULT_CONFIGURATION),
         help="x y z [m] phi theta sigma [rad] alpha1 alpha2 alpha3 [rad] "
         "(default: 0 0 5 0 0 0 1 1 1)",
-    )  # fmt: skip
+    )
     statics.add_argument("--cost-form", choices=[f.value for f in CostForm], default="normalized")
     statics.add_argument("--json", action="store_true", help="print JSON instead of a table")
     statics.set_defaults(handler=_cmd_statics)
@@ -156,7 +156,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="Table I and Fig. 6: planners over scenes and seeds")
     bench.add_argument("--scenes", nargs="+", default=["rescue", "puzzle"])
     bench.add_argument("--planners", nargs="+", default=["trrt", "rrt", "ompl-trrt", "ompl-rrt"],
-                       choices=["trrt", "rrt", "ompl-trrt", "ompl-rrt"])  # fmt: skip
+                       choices=["trrt", "rrt", "ompl-trrt", "ompl-rrt"])
     bench.add_argument("--runs", type=int, default=100, help="seeds per scene and planner")
     bench.add_argument("--budget", type=float, default=60.0, help="seconds per run")
     bench.add_argument("--step", type=float, help="extension step (default: planner default)")

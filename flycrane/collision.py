@@ -96,9 +96,13 @@ class CollisionChecker:
         self._payload_boxes = BoxSet.of(self.platform_fixed[1:])
         self._request = fcl.CollisionRequest()
         self._drone = fcl.Sphere(settings.drone_radius)
-        self._cables = [fcl.Capsule(settings.cable_radius, float(l)) for l in system.cable_lengths]
+        self._cables = [
+            fcl.Capsule(settings.cable_radius, float(length)) for length in system.cable_lengths
+        ]
         trimmed = np.maximum(system.cable_lengths - settings.cable_clearance_at_platform, 1e-3)
-        self._trimmed_cables = [fcl.Capsule(settings.cable_radius, float(l)) for l in trimmed]
+        self._trimmed_cables = [
+            fcl.Capsule(settings.cable_radius, float(length)) for length in trimmed
+        ]
         self._ground = fcl.CollisionObject(fcl.Halfspace(np.array([0.0, 0.0, 1.0]), 0.0))
 
     def __reduce__(self):
@@ -122,9 +126,7 @@ class CollisionChecker:
         lengths = self.system.cable_lengths[None, :, None]
         cable_end = pose.cable_start + pose.cable_axis * lengths
         fixed_c, fixed_h = world_boxes(self._fixed_boxes, pose.position, pose.rotation)
-        centers = np.concatenate(
-            [pose.drones, (pose.cable_start + cable_end) / 2, fixed_c], axis=1
-        )
+        centers = np.concatenate([pose.drones, (pose.cable_start + cable_end) / 2, fixed_c], axis=1)
         halves = np.concatenate(
             [
                 np.full(pose.drones.shape, r_d),
@@ -139,8 +141,9 @@ class CollisionChecker:
 
     # -- fcl objects for one configuration --------------------------------------------------
 
-    def _robot_object(self, kind: str, index: int, pose: _Pose, row: int,
-                      trimmed: bool = False) -> fcl.CollisionObject:  # fmt: skip
+    def _robot_object(
+        self, kind: str, index: int, pose: _Pose, row: int, trimmed: bool = False
+    ) -> fcl.CollisionObject:
         if kind == "drone":
             return fcl.CollisionObject(self._drone, fcl.Transform(pose.drones[row, index]))
         if kind == "cable":
@@ -164,8 +167,11 @@ class CollisionChecker:
 
     def _depth(self, a: fcl.CollisionObject, b: fcl.CollisionObject, contacts: bool) -> float:
         """0 if apart, else the penetration depth (or a tiny positive number without contacts)."""
-        request = fcl.CollisionRequest(num_max_contacts=1, enable_contact=True) if contacts \
-            else self._request  # fmt: skip
+        request = (
+            fcl.CollisionRequest(num_max_contacts=1, enable_contact=True)
+            if contacts
+            else self._request
+        )
         result = fcl.CollisionResult()
         if not fcl.collide(a, b, request, result):
             return 0.0
@@ -182,8 +188,9 @@ class CollisionChecker:
         gaps = np.linalg.norm(pose.drones[:, :, None] - pose.drones[:, None, :], axis=-1)
         pairs = np.where(np.triu(np.ones((3, 3), bool), 1), s.min_drone_separation - gaps, -np.inf)
         rel = pose.drones[:, :, None, :] - pose.cable_start[:, None, :, :]  # (N, 3, 6, 3)
-        along = np.clip(np.einsum("nkia,nia->nki", rel, pose.cable_axis), 0.0,
-                        self.system.cable_lengths)  # fmt: skip
+        along = np.clip(
+            np.einsum("nkia,nia->nki", rel, pose.cable_axis), 0.0, self.system.cable_lengths
+        )
         closest = rel - along[..., None] * pose.cable_axis[:, None, :, :]
         cable = s.drone_radius + s.cable_radius - np.linalg.norm(closest, axis=-1)
         own = np.array(CABLE_DRONE)[None, :] == np.arange(3)[:, None]  # a drone holds its cables
@@ -191,10 +198,14 @@ class CollisionChecker:
 
     def _self_contacts(self, pose: _Pose, row: int) -> list[Contact]:
         pairs, cable = self._self_shortfalls(pose)
-        found = [Contact(f"drone {k + 1}", f"drone {m + 1}", float(pairs[row, k, m]))
-                 for k, m in zip(*np.nonzero(pairs[row] > 0), strict=True)]  # fmt: skip
-        found += [Contact(f"drone {k + 1}", f"cable {i + 1}", float(cable[row, k, i]))
-                  for k, i in zip(*np.nonzero(cable[row] > 0), strict=True)]  # fmt: skip
+        found = [
+            Contact(f"drone {k + 1}", f"drone {m + 1}", float(pairs[row, k, m]))
+            for k, m in zip(*np.nonzero(pairs[row] > 0), strict=True)
+        ]
+        found += [
+            Contact(f"drone {k + 1}", f"cable {i + 1}", float(cable[row, k, i]))
+            for k, i in zip(*np.nonzero(cable[row] > 0), strict=True)
+        ]
         return found
 
     def _self_free(self, pose: _Pose) -> NDArray[np.bool_]:
@@ -241,6 +252,7 @@ class CollisionChecker:
     def _payload_pairs(self, pose: _Pose) -> list[tuple[int, str, int, object]]:
         """Drones and cables near payload shapes, tested in the platform frame where the
         payload's boxes are fixed (exact for drones against boxes, slab test for cables)."""
+
         def local(x: NDArray) -> NDArray:
             return np.einsum("nba,nkb->nka", pose.rotation, x - pose.position[:, None, :])
 
@@ -253,9 +265,11 @@ class CollisionChecker:
         lengths = self.system.cable_lengths[:, None]
         start = pose.cable_start + pose.cable_axis * s.cable_clearance_at_platform
         cables = segment_near_boxes(
-            local(start), local(pose.cable_start + pose.cable_axis * lengths), s.cable_radius,
+            local(start),
+            local(pose.cable_start + pose.cable_axis * lengths),
+            s.cable_radius,
             boxes,
-        )  # fmt: skip
+        )
         for row, i, j in zip(*np.nonzero(cables), strict=True):
             pairs.append((int(row), "cable", int(i), ("payload", int(j) + 1)))
         return pairs

@@ -41,8 +41,9 @@ def _bvh(vertices: NDArray, faces: NDArray) -> fcl.BVHModel:
     return model
 
 
-def body_from_shape(shape: Box | Cylinder | Sphere | Mesh, name: str,
-                    base_dir: Path | None) -> Body:  # fmt: skip
+def body_from_shape(
+    shape: Box | Cylinder | Sphere | Mesh, name: str, base_dir: Path | None
+) -> Body:
     """A :class:`Body` for a scene shape (pose relative to its parent frame)."""
     rotation = matrix_from_tilt_torsion(np.array(shape.rotation))
     center = np.array(shape.center, dtype=float)
@@ -77,8 +78,14 @@ def platform_body(system: CableSystem, thickness: float) -> Body:
         j = (i + 1) % n
         faces += [(i, n + i, n + j), (i, n + j, j)]
     low, high = vertices.min(axis=0), vertices.max(axis=0)
-    return Body("platform", _bvh(vertices, np.array(faces)), np.zeros(3), np.eye(3),
-                (low + high) / 2, (high - low) / 2)  # fmt: skip
+    return Body(
+        "platform",
+        _bvh(vertices, np.array(faces)),
+        np.zeros(3),
+        np.eye(3),
+        (low + high) / 2,
+        (high - low) / 2,
+    )
 
 
 def obstacle_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
@@ -88,8 +95,15 @@ def obstacle_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
         body = body_from_shape(shape, shape.name or f"{shape.kind} {index + 1}", base_dir)
         placed = fcl.CollisionObject(body.geometry, fcl.Transform(body.rotation, body.center))
         bodies.append(
-            Body(body.name, body.geometry, body.center, body.rotation, body.box_center,
-                 body.half_size, placed)  # fmt: skip
+            Body(
+                body.name,
+                body.geometry,
+                body.center,
+                body.rotation,
+                body.box_center,
+                body.half_size,
+                placed,
+            )
         )
     return bodies
 
@@ -183,7 +197,12 @@ def rotations_from_z(direction: NDArray[np.float64]) -> NDArray[np.float64]:
     c = d[..., 2]
     v = np.stack([-d[..., 1], d[..., 0], np.zeros_like(c)], axis=-1)  # z x d
     k = np.zeros(d.shape[:-1] + (3, 3))
-    k[..., 0, 2], k[..., 1, 2], k[..., 2, 0], k[..., 2, 1] = v[..., 1], -v[..., 0], -v[..., 1], v[..., 0]
+    k[..., 0, 2], k[..., 1, 2], k[..., 2, 0], k[..., 2, 1] = (
+        v[..., 1],
+        -v[..., 0],
+        -v[..., 1],
+        v[..., 0],
+    )
     k[..., 0, 1], k[..., 1, 0] = -v[..., 2], v[..., 2]
     flipped = c < -1.0 + 1e-9
     scale = np.where(flipped, 0.0, 1.0 / np.where(flipped, 1.0, 1.0 + c))

@@ -3,7 +3,8 @@
 Normalized form (the default)::
 
     c(q) = 1 / ( prod_k (h_k - m_k) / h_k
-                 * prod_i (t_lo_i - f_lo_i) / (f_hi_i - f_lo_i) * (f_hi_i - t_hi_i) / (f_hi_i - f_lo_i) )
+                 * prod_i (t_lo_i - f_lo_i) / (f_hi_i - f_lo_i)
+                          * (f_hi_i - t_hi_i) / (f_hi_i - f_lo_i) )
 
 Every factor is a margin divided by its range, so c is dimensionless and c >= 1 on feasible
 configurations. The raw form drops the divisions (the paper's units, N^-15). Both are +inf

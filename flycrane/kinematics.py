@@ -29,7 +29,9 @@ def as_configurations(q: ArrayLike, name: str = "q") -> NDArray[np.float64]:
     try:
         array = np.asarray(q, dtype=float)
     except (TypeError, ValueError) as error:
-        raise ConfigurationError([FieldProblem(name, f"not an array of numbers: {error}")])
+        raise ConfigurationError(
+            [FieldProblem(name, f"not an array of numbers: {error}")]
+        ) from None
     if array.ndim == 1:
         array = array[None, :]
     if array.ndim != 2 or array.shape[1] != 9:

@@ -67,10 +67,10 @@ def path_profile(
 
 def _figure():
     """A two-panel figure (tensions, thrusts) from the non-interactive backend."""
-    import matplotlib  # noqa: PLC0415 -- plotting stays off the import path of the model
+    import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415
+    import matplotlib.pyplot as plt
 
     figure, axes = plt.subplots(1, 2, figsize=(12, 4.5))
     return plt, figure, axes
@@ -102,9 +102,9 @@ def plot_profile_bands(
         t = np.stack([p.tension for p in profiles])  # (P, S, 6)
         f = np.stack([p.thrust for p in profiles])  # (P, S, 3)
         tensions.fill_between(x, t.min(axis=(0, 2)), t.max(axis=(0, 2)), color=colour,
-                              alpha=0.3, label=f"{label} ({len(profiles)} paths)")  # fmt: skip
+                              alpha=0.3, label=f"{label} ({len(profiles)} paths)")
         thrusts.fill_between(x, f.min(axis=(0, 2)), f.max(axis=(0, 2)), color=colour,
-                             alpha=0.3, label=f"{label} ({len(profiles)} paths)")  # fmt: skip
+                             alpha=0.3, label=f"{label} ({len(profiles)} paths)")
     for axis, limits, name in (
         (tensions, (system.tension_min.min(), system.tension_max.max()), "cable tension [N]"),
         (thrusts, (None, system.max_thrusts.max()), "drone thrust [N]"),
@@ -121,18 +121,18 @@ def plot_profile_bands(
 
 
 def plot_path_profile(profile: PathProfile, system: CableSystem, out: str | Path,
-                      title: str = "") -> Path:  # fmt: skip
+                      title: str = "") -> Path:
     """One path: each cable's nominal tension and range, each drone's thrust; PNG."""
     plt, figure, (tensions, thrusts) = _figure()
     x = 100 * profile.fraction
     for i in range(6):
         line = tensions.plot(x, profile.tension[:, i], label=f"cable {i + 1}")[0]
         tensions.fill_between(x, profile.tension_low[:, i], profile.tension_high[:, i],
-                              color=line.get_color(), alpha=0.12)  # fmt: skip
+                              color=line.get_color(), alpha=0.12)
     for k in range(3):
         line = thrusts.plot(x, profile.thrust[:, k], label=f"drone {k + 1} nominal")[0]
         thrusts.plot(x, profile.thrust_bound[:, k], color=line.get_color(), linestyle=":",
-                     label=f"drone {k + 1} worst case")  # fmt: skip
+                     label=f"drone {k + 1} worst case")
     tensions.axhline(system.tension_min.min(), color="black", linestyle="--", linewidth=1)
     thrusts.axhline(system.max_thrusts.max(), color="black", linestyle="--", linewidth=1)
     tensions.set(xlabel="path step", ylabel="cable tension [N]", title="tensions and ranges")

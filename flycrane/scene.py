@@ -88,7 +88,7 @@ class Mesh(_Shape):
         """(vertices (V, 3) scaled, faces (F, 3)) from the file or the inline data."""
         if self.file is None:
             return self.scale * np.asarray(self.vertices, float), np.asarray(self.faces, int)
-        import trimesh  # noqa: PLC0415 -- only scenes with mesh files need it
+        import trimesh
 
         path = Path(self.file) if base_dir is None else base_dir / self.file
         try:

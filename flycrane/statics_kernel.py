@@ -31,11 +31,11 @@ _DRONE_CABLES = np.array(DRONE_CABLES, dtype=np.int64)
 
 
 @numba.njit(cache=True, nogil=True)
-def _statics_rows(  # noqa: PLR0913 -- flat arrays keep the numba call signature simple
+def _statics_rows(
     q, points, foot, radius, outward, up, com, drone_weight, thrust_max, f_lo, f_hi,
     lsqrt, platform_weight, cable_drone, drone_cables, threshold, normalized,
     f0_out, v_out, m_out, cost_out,
-):  # fmt: skip
+):
     n = q.shape[0]
     rot = np.empty((3, 3))
     drones = np.empty((3, 3))
@@ -178,7 +178,7 @@ def compiled_statics(
         system.tension_max, system.perturbation_sqrt, system.platform_mass * system.gravity,
         _CABLE_DRONE, _DRONE_CABLES, SINGULARITY_THRESHOLD,
         CostForm(form) is CostForm.NORMALIZED, f0, v, m, cost,
-    )  # fmt: skip
+    )
     return f0, v, m, cost
 
 

@@ -58,5 +58,5 @@ def statics_summary(
             {"constraint": str(v.constraint), "index": v.index, "margin": _finite(v.margin)[0],
              "message": str(v)}
             for v in violations(report, row)
-        ],  # fmt: skip
+        ],
     }

@@ -63,7 +63,7 @@ PerCableNonNegative = Annotated[
     tuple[
         NonNegativeFloat, NonNegativeFloat, NonNegativeFloat,
         NonNegativeFloat, NonNegativeFloat, NonNegativeFloat,
-    ],  # fmt: skip
+    ],
     _one_for_all(6, "cable"),
 ]
 
@@ -307,7 +307,9 @@ def load_system(path: str | Path) -> SystemSpec:
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as error:
-        raise SystemSpecError([FieldProblem("file", error.strerror or str(error))], str(path))
+        raise SystemSpecError(
+            [FieldProblem("file", error.strerror or str(error))], str(path)
+        ) from None
     try:
         if path.suffix.lower() == ".toml":
             data = tomllib.loads(text)

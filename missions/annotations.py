@@ -51,7 +51,7 @@ class Annotations:
                 ],
             }
             for k in range(len(self.time))
-        ]  # fmt: skip
+        ]
 
 
 def annotate(system: CableSystem, time: NDArray, q: NDArray) -> Annotations:

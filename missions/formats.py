@@ -24,7 +24,7 @@ from missions.items import DroneMission, MavFrame, MissionItem
 
 #: Wire frame -> file frame (decimal degrees).
 FILE_FRAME = {MavFrame.GLOBAL_INT: MavFrame.GLOBAL,
-              MavFrame.GLOBAL_RELATIVE_ALT_INT: MavFrame.GLOBAL_RELATIVE_ALT}  # fmt: skip
+              MavFrame.GLOBAL_RELATIVE_ALT_INT: MavFrame.GLOBAL_RELATIVE_ALT}
 #: MAV_AUTOPILOT_ARDUPILOTMEGA and MAV_TYPE_QUADROTOR, for QGC's plan header.
 FIRMWARE_ARDUPILOT, VEHICLE_QUADROTOR = 3, 2
 
@@ -48,7 +48,7 @@ def waypoints_text(mission: DroneMission) -> str:
                                                              item.param3, item.param4)),
             f"{_degrees(item.x):.8f}", f"{_degrees(item.y):.8f}", f"{item.z:.6f}",
             str(item.autocontinue),
-        ]  # fmt: skip
+        ]
         lines.append("\t".join(fields))
     return "\n".join(lines) + "\n"
 
@@ -59,7 +59,7 @@ def qgc_plan(mission: DroneMission, cruise_speed: float) -> dict[str, Any]:
     items = []
     for item in rest:
         params = [item.param1, item.param2, item.param3, item.param4,
-                  _degrees(item.x), _degrees(item.y), item.z]  # fmt: skip
+                  _degrees(item.x), _degrees(item.y), item.z]
         entry: dict[str, Any] = {
             "autoContinue": bool(item.autocontinue),
             "command": int(item.command),
@@ -86,7 +86,7 @@ def qgc_plan(mission: DroneMission, cruise_speed: float) -> dict[str, Any]:
             "cruiseSpeed": cruise_speed,
             "hoverSpeed": cruise_speed,
             "plannedHomePosition": [round(_degrees(home.x), 8), round(_degrees(home.y), 8),
-                                    home.z],  # fmt: skip
+                                    home.z],
             "items": items,
         },
     }
@@ -98,13 +98,13 @@ def mission_json(mission: DroneMission) -> dict[str, Any]:
     return {"drone": mission.drone,
             "items": [{f: int(v) if f in ("frame", "command", "mission_type") else v
                        for f, v in ((f, getattr(i, f)) for f in fields)}
-                      for i in mission.items]}  # fmt: skip
+                      for i in mission.items]}
 
 
 def mission_from_json(data: dict[str, Any]) -> DroneMission:
     """Inverse of :func:`mission_json`."""
     return DroneMission(drone=int(data["drone"]),
-                        items=tuple(MissionItem(**item) for item in data["items"]))  # fmt: skip
+                        items=tuple(MissionItem(**item) for item in data["items"]))
 
 
 def dumps(document: dict[str, Any]) -> str:

@@ -46,7 +46,7 @@ from missions.options import MissionOptions
 from missions.tracks import Track
 
 GREY, ORANGE, BLUE, RED = (0.6, 0.6, 0.6, 0.5), (1.0, 0.6, 0.1, 0.9), (0.2, 0.4, 1.0, 0.9), (
-    0.9, 0.1, 0.1, 1.0)  # fmt: skip
+    0.9, 0.1, 0.1, 1.0)
 
 
 @dataclass(frozen=True)
@@ -151,7 +151,7 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
     samples = np.unique(np.searchsorted(track.time, np.arange(0.0, track.duration, 1 / rate)))
     samples = np.union1d(samples, [len(track.time) - 1])
     messages: list[tuple[int, str, bytes]] = []
-    stamp_of = lambda t: start + int(round(float(t) * 1e9))  # noqa: E731
+    stamp_of = lambda t: start + round(float(t) * 1e9)  # noqa: E731
     messages.append((start, "/scene", _static_update(inputs.scene, start).SerializeToString()))
     lat, lon, alt = geodetic_from_enu(track.drones[samples], inputs.options.origin)
     for n, k in enumerate(samples):
@@ -159,29 +159,30 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
         messages.append((stamp, "/scene", _crane_update(inputs, q, stamp).SerializeToString()))
         transform = FrameTransform(parent_frame_id="world", child_frame_id="platform")
         transform.timestamp.FromNanoseconds(stamp)
-        transform.translation.x, transform.translation.y, transform.translation.z = map(float, q[:3])
+        translation = transform.translation
+        translation.x, translation.y, translation.z = map(float, q[:3])
         x, y, z, w = Rotation.from_matrix(matrix_from_tilt_torsion(q[3:6])).as_quat()
         transform.rotation.x, transform.rotation.y, transform.rotation.z, transform.rotation.w = (
-            x, y, z, w)  # fmt: skip
+            x, y, z, w)
         messages.append((stamp, "/tf", transform.SerializeToString()))
         for j in range(3):
             fix = LocationFix(frame_id=f"drone{j + 1}", latitude=float(lat[n, j]),
-                              longitude=float(lon[n, j]), altitude=float(alt[n, j]))  # fmt: skip
+                              longitude=float(lon[n, j]), altitude=float(alt[n, j]))
             fix.timestamp.FromNanoseconds(stamp)
             messages.append((stamp, f"/drone{j + 1}/fix", fix.SerializeToString()))
     for record in inputs.annotations.records():
         stamp = stamp_of(record["time"])
         tensions = {"time": record["time"], "waypoint": record["waypoint"],
-                    **{f"cable{c['cable']}": c for c in record["cables"]}}  # fmt: skip
+                    **{f"cable{c['cable']}": c for c in record["cables"]}}
         thrusts = {"time": record["time"], "waypoint": record["waypoint"],
-                   **{f"drone{d['drone']}": d for d in record["drones"]}}  # fmt: skip
+                   **{f"drone{d['drone']}": d for d in record["drones"]}}
         cost = {"time": record["time"], "waypoint": record["waypoint"], "cost": record["cost"]}
         for topic, body in (("/annotations/tensions", tensions),
                             ("/annotations/thrusts", thrusts), ("/annotations/cost", cost)):
-            messages.append((stamp, topic, json.dumps(body).encode()))  # fmt: skip
+            messages.append((stamp, topic, json.dumps(body).encode()))
     for mission in inputs.missions:
         messages.append((start, f"/mission/drone{mission.drone}",
-                         json.dumps(mission_json(mission)).encode()))  # fmt: skip
+                         json.dumps(mission_json(mission)).encode()))
     messages.sort(key=lambda m: m[0])  # stable: same-time messages keep their order
 
     with path.open("wb") as stream:
@@ -196,7 +197,7 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
             schema = writer.register_schema(
                 topic_type.DESCRIPTOR.full_name, "protobuf",
                 build_file_descriptor_set(topic_type).SerializeToString(),
-            )  # fmt: skip
+            )
             for topic in topics:
                 channels[topic] = writer.register_channel(topic, "protobuf", schema)
         json_schema = writer.register_schema(

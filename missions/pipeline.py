@@ -73,12 +73,12 @@ def run_task(
     report = (lambda stage, p=None: progress(stage, p)) if progress else (lambda *_: None)
     report("planning")
     planned = plan(problem.space, problem.validity, resolved.start, resolved.goal, task.planner,
-                   should_stop=should_stop, progress=lambda p: report("planning", p))  # fmt: skip
+                   should_stop=should_stop, progress=lambda p: report("planning", p))
     result = planned.result
     base = {
         "planner_status": result.status.value,
         "planner_statistics": {**result.statistics.as_dict(),
-                               "smoothing_time": planned.smoothing_time},  # fmt: skip
+                               "smoothing_time": planned.smoothing_time},
     }
     if not result.status.solved:
         status: Status = "cancelled" if result.status.value == "cancelled" else "failed"
@@ -89,13 +89,13 @@ def run_task(
     artifacts: dict[str, str] = {}
     options, system = task.mission, problem.system
     _write(out, "path.json", dumps({"configurations": planned.path.tolist(),
-                                     "raw_path": result.path.tolist()}), artifacts)  # fmt: skip
+                                     "raw_path": result.path.tolist()}), artifacts)
     track = track_from_path(system, problem.space, planned.path, options)
     waypoints = reduce_to_waypoints(system, track, problem.validity.is_safe, options)
     metrics = planned.metrics.as_dict() if planned.metrics else None
     if not waypoints.ok:
         outcome = TaskOutcome("failed", f"mission generation: {waypoints.reason}", metrics=metrics,
-                              artifacts=artifacts, **base)  # fmt: skip
+                              artifacts=artifacts, **base)
         _write(out, "summary.json", dumps(outcome.as_dict()), {})
         return outcome
     annotations = annotate(system, waypoints.time, waypoints.q)
@@ -118,7 +118,7 @@ def run_task(
         "leg_speeds": waypoints.leg_speeds.tolist(), "annotations": annotations.records(),
         "timing_tolerance": tolerance.as_dict(),
         "dense": {"time": track.time.tolist(), "configurations": track.q.tolist()},
-    }  # fmt: skip
+    }
     _write(out, "tracks.json", dumps(tracks), artifacts)
     for mission in missions:
         stem = f"drone{mission.drone}"
@@ -132,14 +132,14 @@ def run_task(
         metadata={"system": system.spec.model_dump(mode="json"),
                   "scene": problem.scene.model_dump(mode="json"),
                   "planner": base, "mission": mission_summary},
-    ))  # fmt: skip
+    ))
     artifacts["mcap"] = "mission.mcap"
     profile = path_profile(system, problem.space, planned.path)
     plot_path_profile(profile, system, out / "profile.png",
-                      title=f"{task.name or problem.scene.name}: tensions and thrusts")  # fmt: skip
+                      title=f"{task.name or problem.scene.name}: tensions and thrusts")
     artifacts["profile"] = "profile.png"
     outcome = TaskOutcome("done", "", metrics=metrics, mission=mission_summary,
-                          artifacts=artifacts, **base)  # fmt: skip
+                          artifacts=artifacts, **base)
     _write(out, "summary.json", dumps(outcome.as_dict()), artifacts)
     logger.info("task done in %s: %d waypoints", out, len(waypoints.time))
     return outcome

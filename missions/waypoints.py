@@ -77,7 +77,7 @@ def drone_positions_at(
 
 def planned_configurations(track: Track, t: NDArray) -> NDArray[np.float64]:
     """Planned configurations at times t, linear between dense samples (angles unwrapped)."""
-    from flycrane.planning.interpolation import interpolate  # noqa: PLC0415
+    from flycrane.planning.interpolation import interpolate
 
     k, f = track.index_at(t)
     return interpolate(track.q[k], track.q[k + 1], f)
@@ -121,7 +121,7 @@ def reduce_to_waypoints(
         times = np.linspace(t0, t1, count)
         ends = np.stack([track.drones[i], track.drones[j]])
         check = check_flight(system, track, drone_positions_at(np.array([t0, t1]), ends, times),
-                             times, validity)  # fmt: skip
+                             times, validity)
         badness = np.maximum(
             check.platform_deviation / options.max_platform_deviation,
             check.cable_length_error / options.max_cable_length_error,

@@ -62,7 +62,7 @@ class BodySizeLimit:
     async def _refuse(self, send: Send) -> None:
         body = f'{{"detail": "request body larger than {self.limit} bytes"}}'.encode()
         await send({"type": "http.response.start", "status": 413,
-                    "headers": [(b"content-type", b"application/json")]})  # fmt: skip
+                    "headers": [(b"content-type", b"application/json")]})
         await send({"type": "http.response.body", "body": body})
 
 
@@ -82,7 +82,7 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         metrics = ServiceMetrics(store)
         pool = executor or local_executor(settings.workers)
         jobs = JobManager(store, pool, url, settings.tasks_dir, settings.max_queued_tasks,
-                          metrics)  # fmt: skip
+                          metrics)
         app.state.service = ServiceState(settings, store, jobs, metrics)
         resumed = jobs.resume_unfinished()
         if resumed:

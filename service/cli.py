@@ -6,13 +6,13 @@ import argparse
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:
-    import uvicorn  # noqa: PLC0415
+    import uvicorn
 
-    from service.app import create_app  # noqa: PLC0415
-    from service.settings import Settings  # noqa: PLC0415
+    from service.app import create_app
+    from service.settings import Settings
 
     overrides = {k: v for k, v in (("data_dir", args.data_dir), ("workers", args.workers))
-                 if v is not None}  # fmt: skip
+                 if v is not None}
     settings = Settings(**overrides)
     uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level="info")
     return 0

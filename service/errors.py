@@ -79,7 +79,7 @@ def _readable_location(loc: tuple) -> list:
             or part[:1].isupper() or part in ("octahedral", "generic", "box", "cylinder",
                                               "sphere", "mesh")
         )
-    ]  # fmt: skip
+    ]
 
 
 def clean_validation_errors(errors: list[dict]) -> list[dict]:

@@ -49,9 +49,9 @@ def run_job(spec: JobSpec) -> str:
 
     Imports the pipeline here so that the API process never loads planners or numba.
     """
-    from flycrane.planning.result import PlanningProgress  # noqa: PLC0415
-    from missions.pipeline import run_task  # noqa: PLC0415
-    from missions.task import TaskSpec  # noqa: PLC0415
+    from flycrane.planning.result import PlanningProgress
+    from missions.pipeline import run_task
+    from missions.task import TaskSpec
 
     store = TaskStore(make_engine(spec.database_url))
     record = store.get(spec.task_id)
@@ -77,7 +77,7 @@ def run_job(spec: JobSpec) -> str:
         data = {"stage": stage}
         if report is not None:
             data.update(iterations=report.expansion_attempts, nodes=report.nodes,
-                        distance_to_goal=report.distance_to_goal, elapsed=report.elapsed)  # fmt: skip
+                        distance_to_goal=report.distance_to_goal, elapsed=report.elapsed)
         store.update(spec.task_id, spec.attempt, status=TaskStatus(stage), progress=data)
         written.update(at=now, stage=stage)
 
@@ -87,9 +87,9 @@ def run_job(spec: JobSpec) -> str:
         return TaskStatus.CANCELLED.value
     try:
         outcome = run_task(TaskSpec.model_validate(spec.request), spec.task_dir,
-                           progress=progress, should_stop=should_stop)  # fmt: skip
+                           progress=progress, should_stop=should_stop)
         status, result, error = TaskStatus(outcome.status), outcome.as_dict(), outcome.reason
-    except Exception as failure:  # noqa: BLE001 -- any failure is the task's outcome
+    except Exception as failure:
         logger.exception("task %s failed", spec.task_id)
         status, result, error = TaskStatus.FAILED, None, f"{type(failure).__name__}: {failure}"
     store.update(spec.task_id, spec.attempt, status=status, result=result, error=error or None)
@@ -133,7 +133,7 @@ class JobManager:
     def submit(self, record: TaskRecord) -> None:
         """Queue a stored task (its row already says queued)."""
         spec = JobSpec(record.id, record.attempt, record.request, self.database_url,
-                       str(self.task_dir(record.id)))  # fmt: skip
+                       str(self.task_dir(record.id)))
         future = self.executor.submit(self.job, spec)
         with self._lock:
             self._futures[record.id] = future
@@ -146,7 +146,7 @@ class JobManager:
             future = self._futures.get(task_id)
         if future is not None and future.cancel():
             record = self.store.update(task_id, status=TaskStatus.CANCELLED,
-                                       error="cancelled while queued")  # fmt: skip
+                                       error="cancelled while queued")
         return record
 
     def resume_unfinished(self) -> list[str]:
@@ -155,10 +155,10 @@ class JobManager:
         for record in self.store.unfinished():
             record = self.store.update(record.id, status=TaskStatus.QUEUED,
                                        attempt=record.attempt + 1,
-                                       progress={"stage": "queued", "resumed": True})  # fmt: skip
+                                       progress={"stage": "queued", "resumed": True})
             if record.cancel_requested:
                 self.store.update(record.id, status=TaskStatus.CANCELLED,
-                                  error="cancelled before a restart")  # fmt: skip
+                                  error="cancelled before a restart")
                 continue
             self.submit(record)
             resumed.append(record.id)
@@ -172,7 +172,7 @@ class JobManager:
         failure = future.exception()
         if failure is not None:  # the worker died or could not even start the job
             self.store.update(task_id, status=TaskStatus.FAILED,
-                              error=f"worker failed: {type(failure).__name__}: {failure}")  # fmt: skip
+                              error=f"worker failed: {type(failure).__name__}: {failure}")
         record = self.store.get(task_id)
         if record and record.result:
             seconds = record.result.get("planner_statistics", {}).get("time")

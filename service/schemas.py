@@ -52,7 +52,7 @@ class TaskPublic(BaseModel):
             created_at=record.created_at, updated_at=record.updated_at,
             progress=None if record.status.finished else record.progress, error=record.error,
             cancel_requested=record.cancel_requested, result=record.result, artifacts=artifacts,
-        )  # fmt: skip
+        )
 
 
 class TaskPage(BaseModel):

@@ -15,8 +15,19 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import JSON, Boolean, DateTime, ForeignKey, Integer, String, Text, create_engine
-from sqlalchemy import event, func, select
+from sqlalchemy import (
+    JSON,
+    Boolean,
+    DateTime,
+    ForeignKey,
+    Integer,
+    String,
+    Text,
+    create_engine,
+    event,
+    func,
+    select,
+)
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
 
@@ -92,7 +103,7 @@ class TaskRecord:
             updated_at=row.updated_at, request=row.request, progress=row.progress,
             result=row.result, error=row.error, cancel_requested=row.cancel_requested,
             attempt=row.attempt,
-        )  # fmt: skip
+        )
 
 
 def make_engine(url: str) -> Engine:

@@ -90,10 +90,10 @@ class OmplPlanner:
                 return PlannerResult(
                     status, np.empty((0, 9)), PlannerStatistics(self.name, seed, 0.0, 0, 0),
                     self.validity.describe_invalid(np.asarray(q, dtype=float)),
-                )  # fmt: skip
+                )
         budget = max(0.0, termination.time_budget - termination.elapsed())
         job = _Job(self.space, self.validity, self.algorithm, self.config,
-                   np.asarray(start, float), np.asarray(goal, float), budget, seed)  # fmt: skip
+                   np.asarray(start, float), np.asarray(goal, float), budget, seed)
         context = multiprocessing.get_context("spawn")
         receiver, sender = context.Pipe(duplex=False)
         child = context.Process(target=_child_main, args=(sender, job), daemon=True)
@@ -125,7 +125,7 @@ def _child_main(sender, job: _Job) -> None:
     """Plan with OMPL in this (spawned) process, send the outcome, leave without atexit."""
     try:
         sender.send(_solve(job))
-    except BaseException as error:  # noqa: BLE001 -- any failure goes back to the parent
+    except BaseException as error:
         sender.send(error)
     finally:
         sender.close()
@@ -133,7 +133,7 @@ def _child_main(sender, job: _Job) -> None:
 
 
 def _solve(job: _Job) -> tuple[PlannerStatus, NDArray[np.float64], int, int]:
-    from ompl import base as ob  # noqa: PLC0415 -- only ever imported in the child
+    from ompl import base as ob
     from ompl import geometric as og
     from ompl import util as ou
 
@@ -157,7 +157,7 @@ def _solve(job: _Job) -> tuple[PlannerStatus, NDArray[np.float64], int, int]:
 
     def to_q(state) -> NDArray[np.float64]:
         return np.array([state[0][0], state[0][1], state[0][2], state[1].value, state[2][0],
-                         state[3].value, state[4].value, state[5].value, state[6].value])  # fmt: skip
+                         state[3].value, state[4].value, state[5].value, state[6].value])
 
     def set_state(state, q: NDArray) -> None:
         for axis in range(3):
@@ -173,7 +173,7 @@ def _solve(job: _Job) -> tuple[PlannerStatus, NDArray[np.float64], int, int]:
     motion_checks = [0]
 
     class Motions(ob.MotionValidator):
-        def checkMotion(self, a, b, *last_valid) -> bool:  # noqa: N802 -- OMPL's name
+        def checkMotion(self, a, b, *last_valid) -> bool:
             motion_checks[0] += 1
             return job.validity.motion_is_valid(to_q(a), to_q(b))
 
@@ -182,7 +182,7 @@ def _solve(job: _Job) -> tuple[PlannerStatus, NDArray[np.float64], int, int]:
     info.setup()
 
     class StaticsCost(ob.MechanicalWorkOptimizationObjective):
-        def stateCost(self, state):  # noqa: N802 -- OMPL's name
+        def stateCost(self, state):
             return ob.Cost(float(job.validity.cost(to_q(state)[None])[0]))
 
     problem = ob.ProblemDefinition(info)

@@ -98,14 +98,17 @@ class TRRTConfig:
         checks = [
             ("step", self.step is None or self.step > 0, "must be > 0"),
             ("goal_bias", 0.0 <= self.goal_bias <= 1.0, "must be in [0, 1]"),
-            ("init_temperature", self.init_temperature is None or self.init_temperature > 0,
-             "must be > 0"),
+            (
+                "init_temperature",
+                self.init_temperature is None or self.init_temperature > 0,
+                "must be > 0",
+            ),
             ("temperature_rate", 0.0 <= self.temperature_rate <= 1.0, "must be in [0, 1]"),
             ("cost_range_fraction", self.cost_range_fraction > 0, "must be > 0"),
             ("refinement_ratio", 0.0 <= self.refinement_ratio <= 1.0, "must be in [0, 1]"),
             ("cost_threshold", self.cost_threshold > 0, "must be > 0"),
             ("progress_interval", self.progress_interval > 0, "must be > 0"),
-        ]  # fmt: skip
+        ]
         problems = [FieldProblem(name, why) for name, ok, why in checks if not ok]
         if problems:
             raise InputError(problems, "planner options")
@@ -133,7 +136,9 @@ class Temperature:
         climb = c_to - c_from
         if climb < self.value * math.log(2.0):  # exp(-climb / T) > 0.5
             if cost_range > 0.0:
-                self.value /= 2.0 ** min(climb / (self.config.cost_range_fraction * cost_range), 1e3)
+                self.value /= 2.0 ** min(
+                    climb / (self.config.cost_range_fraction * cost_range), 1e3
+                )
                 self._record(attempt)
             return True
         self.value *= 2.0**self.config.temperature_rate
@@ -187,16 +192,22 @@ class TRRT:
         cfg = self.config
         counts = {"X": 0, "refinement": 0, "invalid": 0, "transition": 0}
 
-        def finish(status: PlannerStatus, path=np.empty((0, 9)), reason="", tree=None, temp=None):
+        def finish(status: PlannerStatus, path=None, reason="", tree=None, temp=None):
             stats = PlannerStatistics(
-                planner=self.name, seed=seed, time=time.perf_counter() - clock,
-                nodes=tree.size if tree else 0, expansion_attempts=counts["X"],
-                rejected_refinement=counts["refinement"], rejected_invalid=counts["invalid"],
+                planner=self.name,
+                seed=seed,
+                time=time.perf_counter() - clock,
+                nodes=tree.size if tree else 0,
+                expansion_attempts=counts["X"],
+                rejected_refinement=counts["refinement"],
+                rejected_invalid=counts["invalid"],
                 rejected_transition=counts["transition"],
                 final_temperature=temp.value if temp else math.nan,
                 temperature_history=tuple(temp.history[:: max(1, len(temp.history) // 1000)])
-                if temp else (),
-            )  # fmt: skip
+                if temp
+                else (),
+            )
+            path = np.empty((0, 9)) if path is None else path
             return PlannerResult(status, path, stats, reason)
 
         for q, status in ((start, PlannerStatus.INVALID_START), (goal, PlannerStatus.INVALID_GOAL)):
@@ -216,8 +227,12 @@ class TRRT:
                 return None
             # The climb into the goal is not optional (module docstring).
             optional_climb = q_new is not goal or c_new > cfg.cost_threshold
-            if cfg.transition_test and optional_climb and not temperature.accepts(
-                float(tree.cost[near]), c_new, tree.cost_range(), counts["X"]
+            if (
+                cfg.transition_test
+                and optional_climb
+                and not temperature.accepts(
+                    float(tree.cost[near]), c_new, tree.cost_range(), counts["X"]
+                )
             ):
                 counts["transition"] += 1
                 return None
@@ -242,20 +257,33 @@ class TRRT:
             if added is None:
                 continue
             if q_new is goal:
-                return finish(PlannerStatus.EXACT_SOLUTION, tree.path_to(added), tree=tree,
-                              temp=temperature)  # fmt: skip
+                return finish(
+                    PlannerStatus.EXACT_SOLUTION, tree.path_to(added), tree=tree, temp=temperature
+                )
             to_goal = float(np.linalg.norm(tree.embedding[added] - goal_embedding))
             best_to_goal = min(best_to_goal, to_goal)
             if to_goal <= cfg.step:  # goal-connection attempt
                 reached = try_extend(added, goal, float(c_goal), to_goal)
                 if reached is not None:
-                    return finish(PlannerStatus.EXACT_SOLUTION, tree.path_to(reached), tree=tree,
-                                  temp=temperature)  # fmt: skip
+                    return finish(
+                        PlannerStatus.EXACT_SOLUTION,
+                        tree.path_to(reached),
+                        tree=tree,
+                        temp=temperature,
+                    )
             if progress is not None and termination.elapsed() >= next_report:
                 next_report = termination.elapsed() + cfg.progress_interval
-                progress(PlanningProgress(self.name, counts["X"], tree.size, best_to_goal,
-                                          termination.elapsed()))  # fmt: skip
-        logger.info("%s stopped (%s) after %d attempts, %d nodes", self.name, stop, counts["X"],
-                    tree.size)  # fmt: skip
-        return finish(stop, reason=f"{stop}: closest node {best_to_goal:.3g} from the goal",
-                      tree=tree, temp=temperature)  # fmt: skip
+                progress(
+                    PlanningProgress(
+                        self.name, counts["X"], tree.size, best_to_goal, termination.elapsed()
+                    )
+                )
+        logger.info(
+            "%s stopped (%s) after %d attempts, %d nodes", self.name, stop, counts["X"], tree.size
+        )
+        return finish(
+            stop,
+            reason=f"{stop}: closest node {best_to_goal:.3g} from the goal",
+            tree=tree,
+            temp=temperature,
+        )

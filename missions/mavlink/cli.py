@@ -35,10 +35,10 @@ def register(subparsers: Any) -> None:
     p.add_argument("--host", default="127.0.0.1", help="address to listen on")
     p.add_argument("--connection", metavar="STRING",
                    help="any connection string instead (udpout:HOST:PORT, tcpin:HOST:PORT, "
-                        "/dev/ttyUSB0,57600)")  # fmt: skip
+                        "/dev/ttyUSB0,57600)")
     p.add_argument("--system-id", type=int, default=1, help="MAVLink system id (1..255)")
     p.add_argument("--speedup", type=float, default=1.0,
-                   help="simulated seconds per wall-clock second")  # fmt: skip
+                   help="simulated seconds per wall-clock second")
     p.add_argument("--home", nargs=3, type=float, metavar=("LAT", "LON", "ALT"),
                    default=(SITL_HOME.lat_deg, SITL_HOME.lon_deg, SITL_HOME.alt_m),
                    help="start position: degrees, degrees, metres AMSL (default: SITL's CMAC)")
@@ -56,7 +56,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--seed", type=int, default=0, help="of noise and message faults")
     p.add_argument("--duration", type=float, metavar="S",
                    help="stop after S wall-clock seconds (default: until interrupted)")
-    p.set_defaults(handler=run)  # fmt: skip
+    p.set_defaults(handler=run)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -66,20 +66,20 @@ def run(args: argparse.Namespace) -> int:
     faults = FaultInjection(
         drop_incoming=args.drop, drop_outgoing=args.drop,
         duplicate_incoming=args.duplicate, duplicate_outgoing=args.duplicate, seed=args.seed,
-    )  # fmt: skip
+    )
     imperfections = Imperfections(
         start_delay_s=args.start_delay, speed_scale=args.speed_scale,
         waypoint_slowdown=args.slowdown, position_noise_m=args.noise, seed=args.seed,
-    )  # fmt: skip
+    )
     config = MockConfig(
         system_id=args.system_id, home=Geodetic(*args.home),
         boot_no_space_s=args.boot_no_space, imperfections=imperfections, faults=faults,
-    )  # fmt: skip
+    )
     clock = SimClock(speedup=args.speedup)
     address = args.connection or f"udpin:{args.host}:{args.port}"
     stop = threading.Event()
     previous = {sig: signal.signal(sig, lambda *_: stop.set())
-                for sig in (signal.SIGINT, signal.SIGTERM)}  # fmt: skip
+                for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         with MockAutopilot(address, config, clock):
             print(f"mock autopilot: system {config.system_id} on {address}, "

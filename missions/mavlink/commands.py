@@ -52,7 +52,7 @@ def _await_ack(link: VehicleLink, inbox: Inbox, command: int, until: float) -> b
         if ack.result == ACCEPTED:
             return True
         raise CommandRejectedError(link.name, command, ack.result,
-                                   command_result_name(ack.result))  # fmt: skip
+                                   command_result_name(ack.result))
     return False
 
 
@@ -74,7 +74,7 @@ def send_command(
             if _await_ack(link, inbox, command, time.monotonic() + policy.request_timeout_s):
                 return
     raise MavlinkTimeoutError(link.name, f"COMMAND_ACK for command {command}",
-                              policy.step_timeout_s())  # fmt: skip
+                              policy.step_timeout_s())
 
 
 def request_position_stream(link: VehicleLink, rate_hz: float, policy: RetryPolicy) -> None:

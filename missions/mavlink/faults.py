@@ -33,7 +33,7 @@ class FaultInjection:
             for name in ("drop_incoming", "drop_outgoing", "duplicate_incoming",
                          "duplicate_outgoing")
             if not 0.0 <= getattr(self, name) <= 1.0
-        ]  # fmt: skip
+        ]
         if problems:
             raise InputError(problems, source="FaultInjection")
 

@@ -48,7 +48,7 @@ def on_every_vehicle(
         propagate unchanged: they are bugs, not vehicle behaviour).
     """
     with ThreadPoolExecutor(max_workers=max(len(links), 1),
-                            thread_name_prefix=f"fleet-{operation}") as pool:  # fmt: skip
+                            thread_name_prefix=f"fleet-{operation}") as pool:
         futures = [pool.submit(work, link) for link in links]
     failures: dict[str, MavlinkError] = {}
     for link, future in zip(links, futures, strict=True):
@@ -124,7 +124,7 @@ class Fleet:
         return on_every_vehicle(
             self.links, "upload",
             lambda link: upload_and_verify(link, by_link[link], self.policy, verification),
-        )  # fmt: skip
+        )
 
     def request_position_streams(self, rate_hz: float) -> None:
         """GLOBAL_POSITION_INT at ``rate_hz`` [Hz] from every vehicle (confirmed arriving)."""

@@ -123,7 +123,7 @@ def mission_item_float(item: MissionItem, target: Endpoint) -> MessageSpec:
         "MISSION_ITEM",
         {**_target(target), **_item_fields(item), "x": item.x / scale, "y": item.y / scale,
          "z": item.z},
-    )  # fmt: skip
+    )
 
 
 def _enum_or_int(enum: type[MavFrame] | type[MavCmd] | type[MissionType], value: int) -> Any:
@@ -240,7 +240,7 @@ def heartbeat(
         "HEARTBEAT",
         {"type": mav_type, "autopilot": autopilot, "base_mode": base_mode,
          "custom_mode": custom_mode, "system_status": status, "mavlink_version": 3},
-    )  # fmt: skip
+    )
 
 
 def command_long(
@@ -262,7 +262,7 @@ def command_ack(command: int, result: int, target: Endpoint) -> MessageSpec:
         "COMMAND_ACK",
         {"command": command, "result": result, "progress": 0, "result_param2": 0,
          **_target(target)},
-    )  # fmt: skip
+    )
 
 
 def message_interval_params(name: str, interval_s: float) -> tuple[float, float]:
@@ -279,7 +279,7 @@ def request_data_stream(
         "REQUEST_DATA_STREAM",
         {**_target(target), "req_stream_id": stream, "req_message_rate": rate_hz,
          "start_stop": int(start)},
-    )  # fmt: skip
+    )
 
 
 def global_position_int(
@@ -296,5 +296,5 @@ def global_position_int(
         "GLOBAL_POSITION_INT",
         {"time_boot_ms": time_boot_ms, "lat": lat_e7, "lon": lon_e7, "alt": alt_mm,
          "relative_alt": relative_alt_mm, "vx": vx, "vy": vy, "vz": vz, "hdg": heading_cdeg},
-    )  # fmt: skip
+    )
 

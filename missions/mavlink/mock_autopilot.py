@@ -80,7 +80,7 @@ _STREAMS = {
 _MISSION_PROTOCOL = frozenset(
     {"MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
      "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_ACK"}
-)  # fmt: skip
+)
 
 
 @dataclass(frozen=True)
@@ -157,7 +157,7 @@ class MockAutopilot:
         self.flight = KinematicFlight(
             self.config.home, self.config.dynamics, self.config.imperfections,
             self.clock.epoch_utc,
-        )  # fmt: skip
+        )
         self._home = self.config.home
         self._server = MissionServer(
             self.own, self._home_item, self.config.max_items, self.config.request_int
@@ -276,7 +276,7 @@ class MockAutopilot:
         for msg_id, interval in self._intervals.items():
             if (self._steps - self._phase[msg_id]) % interval == 0:
                 self._send(self._position() if msg_id == _POSITION else
-                           mission_current(self._current, len(self._server.items)))  # fmt: skip
+                           mission_current(self._current, len(self._server.items)))
 
     # --- what the vehicle says ----------------------------------------------------------
 
@@ -299,7 +299,7 @@ class MockAutopilot:
         return heartbeat(
             dialect.MAV_TYPE_QUADROTOR, dialect.MAV_AUTOPILOT_ARDUPILOTMEGA, base_mode, mode,
             status,
-        )  # fmt: skip
+        )
 
     def _position(self) -> MessageSpec:
         lat, lon, alt = self.flight.reported_geodetic()
@@ -342,7 +342,7 @@ class MockAutopilot:
             if self.flight.running:
                 self.flight.start(items, seq, self._home.alt_m)
         return [mission_current(self._current if self.flight.running else self._start_seq,
-                                len(items))]  # fmt: skip
+                                len(items))]
 
     def _set_interval(self, msg_id: int, interval_s: float) -> None:
         """Stream ``msg_id`` every ``interval_s`` (rounded to whole steps, 0 = default,
@@ -363,7 +363,7 @@ class MockAutopilot:
             if int(msg.param1) not in (_POSITION, _CURRENT):
                 return dialect.MAV_RESULT_FAILED
             self._set_interval(int(msg.param1), msg.param2 / 1e6 if msg.param2 > 0 else
-                               msg.param2)  # fmt: skip
+                               msg.param2)
             return dialect.MAV_RESULT_ACCEPTED
         return dialect.MAV_RESULT_UNSUPPORTED
 
@@ -381,7 +381,7 @@ class MockAutopilot:
             e, n, u = self.flight.position
             origin = self.config.home
             lat, lon, alt = pymap3d.enu2geodetic(e, n, u, origin.lat_deg, origin.lon_deg,
-                                                 origin.alt_m)  # fmt: skip
+                                                 origin.alt_m)
             self._home = Geodetic(float(lat), float(lon), float(alt))
         return dialect.MAV_RESULT_ACCEPTED
 

@@ -47,7 +47,7 @@ from missions.items import MavCmd, MissionItem
 NAV_COMMANDS = frozenset(
     {MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_UNLIM, MavCmd.NAV_LAND, MavCmd.NAV_TAKEOFF,
      MavCmd.NAV_DELAY}
-)  # fmt: skip
+)
 SUPPORTED_COMMANDS = NAV_COMMANDS | {MavCmd.DO_CHANGE_SPEED}
 #: Nav commands whose x/y/z are a location.
 LOCATION_COMMANDS = frozenset(
@@ -220,7 +220,7 @@ class SpeedProfile:
     @property
     def duration(self) -> float:
         return (abs(self.v_peak - self.v_in) + abs(self.v_peak - self.v_out)) / self.accel + (
-            self.cruise_s)  # fmt: skip
+            self.cruise_s)
 
     def at(self, t: float) -> tuple[float, float]:
         """Distance along the leg [m] and speed [m/s] at ``t`` [s] after its start."""
@@ -328,7 +328,7 @@ class KinematicFlight:
             e, n, u = pymap3d.geodetic2enu(
                 item.x * 1e-7, item.y * 1e-7, alt,
                 self.origin.lat_deg, self.origin.lon_deg, self.origin.alt_m,
-            )  # fmt: skip
+            )
         return np.array([e, n, u], dtype=float)
 
     def reported_geodetic(self) -> tuple[float, float, float]:
@@ -366,7 +366,7 @@ class KinematicFlight:
                 through = 1.0 - self.imperfections.waypoint_slowdown
                 exit_fraction = through if self._passes_through(items, seq) else 0.0
                 carry = yield from self._fly(target, self._leg_speed(target), exit_fraction,
-                                             carry)  # fmt: skip
+                                             carry)
                 carry = yield from self._hold(max(item.param1, 0.0), carry)
             elif command == MavCmd.NAV_DELAY:
                 carry = yield from self._hold(self._delay_s(item, carry), carry)
@@ -438,7 +438,7 @@ class KinematicFlight:
         direction = delta / length
         cruise = speed * self.imperfections.speed_scale
         profile = SpeedProfile.plan(length, self._speed, cruise, cruise * exit_fraction,
-                                    self.dynamics.max_accel_mps2)  # fmt: skip
+                                    self.dynamics.max_accel_mps2)
         duration = profile.duration
         elapsed = carry
         while elapsed < duration:

@@ -206,7 +206,7 @@ class MissionServer:
         items = self.items
         if not 0 <= seq < len(items):
             return [mission_count(len(items), sender),
-                    mission_ack(dialect.MAV_MISSION_INVALID_SEQUENCE, sender)]  # fmt: skip
+                    mission_ack(dialect.MAV_MISSION_INVALID_SEQUENCE, sender)]
         encode = mission_item_int if as_int else mission_item_float
         return [encode(items[seq], sender)]
 
@@ -216,4 +216,4 @@ def home_item(lat_e7: int, lon_e7: int, alt_amsl_m: float) -> MissionItem:
     return MissionItem(
         seq=0, frame=MavFrame.GLOBAL, command=MavCmd.NAV_WAYPOINT, x=lat_e7, y=lon_e7,
         z=alt_amsl_m,
-    )  # fmt: skip
+    )

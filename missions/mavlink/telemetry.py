@@ -80,7 +80,7 @@ class TelemetryRecorder:
                     buffer.positions.append(PositionSample(
                         now, msg.time_boot_ms, msg.lat, msg.lon, msg.alt, msg.relative_alt,
                         (msg.vx, msg.vy, msg.vz),
-                    ))  # fmt: skip
+                    ))
                 elif kind == "MISSION_CURRENT":
                     buffer.current.append(SeqEvent(now, msg.seq))
                 else:

@@ -91,11 +91,11 @@ def upload_mission(
         silences = 0
         while True:
             stage = f"MISSION_REQUEST for item {highest + 1}" if highest + 1 < count else (
-                "MISSION_ACK")  # fmt: skip
+                "MISSION_ACK")
             now = time.monotonic()
             if now >= deadline:
                 raise MavlinkTimeoutError(link.name, f"upload: {stage} (deadline)",
-                                          policy.deadline_s)  # fmt: skip
+                                          policy.deadline_s)
             msg = inbox.get(min(policy.request_timeout_s, deadline - now))
             if msg is None:
                 silences += 1
@@ -111,7 +111,7 @@ def upload_mission(
             if msg.get_type() != "MISSION_ACK":
                 if not 0 <= msg.seq < count:
                     logger.warning("%s: request for item %d of %d ignored", link.name,
-                                   msg.seq, count)  # fmt: skip
+                                   msg.seq, count)
                     continue
                 highest = max(highest, msg.seq)
                 last_sent = mission_item_int(items[msg.seq], link.target)
@@ -121,26 +121,26 @@ def upload_mission(
             if result == ACCEPTED:
                 if highest == count - 1:
                     logger.info("%s: %d items uploaded in %.2f s", link.name, count,
-                                time.monotonic() - started)  # fmt: skip
+                                time.monotonic() - started)
                     return
                 logger.warning("%s: ACCEPTED before item %d was requested: stale, ignored",
-                               link.name, count - 1)  # fmt: skip
+                               link.name, count - 1)
             elif result == dialect.MAV_MISSION_INVALID_SEQUENCE:
                 logger.info("%s: INVALID_SEQUENCE (a duplicate item), transfer goes on",
-                            link.name)  # fmt: skip
+                            link.name)
             elif (
                 result == dialect.MAV_MISSION_NO_SPACE
                 and highest < 0
                 and time.monotonic() - started < policy.no_space_retry_s
             ):
                 logger.info("%s: NO_SPACE (vehicle booting?), count again in %.2g s",
-                            link.name, policy.no_space_backoff_s)  # fmt: skip
+                            link.name, policy.no_space_backoff_s)
                 time.sleep(min(policy.no_space_backoff_s, max(deadline - time.monotonic(), 0)))
                 link.send(last_sent)
             else:
                 raise MissionTransferError(link.name, "upload", result,
                                            mission_result_name(result),
-                                           seq=highest if highest >= 0 else None)  # fmt: skip
+                                           seq=highest if highest >= 0 else None)
 
 
 def _exchange(
@@ -175,7 +175,7 @@ def _exchange(
             return value
         if msg.get_type() == "MISSION_ACK" and msg.type != ACCEPTED:
             raise MissionTransferError(link.name, operation, msg.type,
-                                       mission_result_name(msg.type))  # fmt: skip
+                                       mission_result_name(msg.type))
 
 
 def download_mission(
@@ -195,7 +195,7 @@ def download_mission(
             link, inbox, mission_request_list(link.target, mission_type),
             lambda m: int(m.count) if m.get_type() == "MISSION_COUNT" else None,
             "download: MISSION_COUNT", "download", policy, deadline, mission_type,
-        )  # fmt: skip
+        )
         items = []
         for seq in range(count):
 
@@ -208,7 +208,7 @@ def download_mission(
                 link, inbox, mission_request_int(seq, link.target, mission_type), item_of,
                 f"download: MISSION_ITEM_INT {seq}", "download", policy, deadline,
                 mission_type,
-            ))  # fmt: skip
+            ))
         link.send(mission_ack(ACCEPTED, link.target, mission_type))
     return tuple(items)
 
@@ -227,4 +227,4 @@ def clear_mission(link: VehicleLink, policy: RetryPolicy, mission_type: int = 0)
             link, inbox, mission_clear_all(link.target, mission_type),
             lambda m: True if m.type == ACCEPTED else None,
             "clear: MISSION_ACK", "clear", policy, deadline, mission_type,
-        )  # fmt: skip
+        )

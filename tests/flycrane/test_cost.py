@@ -16,7 +16,7 @@ configurations = st.tuples(
     st.floats(-20, 20), st.floats(-20, 20), st.floats(1, 30),
     st.floats(-np.pi, np.pi), st.floats(0, 1.0), st.floats(-np.pi, np.pi),
     st.floats(0.2, 2.0), st.floats(0.2, 2.0), st.floats(0.2, 2.0),
-)  # fmt: skip
+)
 
 SYSTEM = CableSystem.from_spec()
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
@@ -21,9 +21,7 @@ from flycrane.kinematics import (
 from flycrane.system import GenericGeometry, SystemSpec
 from tests.conftest import random_configurations, random_feasible_configurations
 
-angles = st.tuples(
-    st.floats(-np.pi, np.pi), st.floats(0.0, np.pi - 1e-6), st.floats(-np.pi, np.pi)
-)
+angles = st.tuples(st.floats(-np.pi, np.pi), st.floats(0.0, np.pi - 1e-6), st.floats(-np.pi, np.pi))
 
 
 @given(angles)
@@ -64,9 +62,13 @@ def test_generic_cables_have_their_lengths():
     spec = SystemSpec(
         geometry=GenericGeometry(
             platform_points=[
-                (0.8, -0.1, 0.0), (0.8, 0.1, 0.05), (-0.3, 0.7, 0.0),
-                (-0.5, 0.6, 0.0), (-0.5, -0.6, -0.05), (-0.3, -0.7, 0.0),
-            ],  # fmt: skip
+                (0.8, -0.1, 0.0),
+                (0.8, 0.1, 0.05),
+                (-0.3, 0.7, 0.0),
+                (-0.5, 0.6, 0.0),
+                (-0.5, -0.6, -0.05),
+                (-0.3, -0.7, 0.0),
+            ],
             cable_lengths=[1.8, 2.0, 2.1, 1.9, 2.2, 2.0],
         )
     )
@@ -97,7 +99,9 @@ def test_octahedral_drones_by_hand(system):
 
 def test_direct_kinematics_recovers_configurations(system):
     q = random_feasible_configurations(system, np.random.default_rng(3), 300)
-    result = configuration_from_drone_positions(system, drone_positions_from_configuration(system, q))
+    result = configuration_from_drone_positions(
+        system, drone_positions_from_configuration(system, q)
+    )
     assert result.converged.all()
     np.testing.assert_allclose(result.q[:, :3], q[:, :3], atol=1e-8)
     np.testing.assert_allclose(result.q[:, 6:], q[:, 6:], atol=1e-8)

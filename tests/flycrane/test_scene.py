@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -34,13 +36,20 @@ def test_puzzle_payload_changes_the_system():
 @pytest.mark.parametrize(
     ("change", "field", "reason"),
     [
-        ({"obstacles": [{"kind": "sphere", "radius": -1}]}, "obstacles[0].radius", "greater than 0"),
+        (
+            {"obstacles": [{"kind": "sphere", "radius": -1}]},
+            "obstacles[0].radius",
+            "greater than 0",
+        ),
         ({"obstacles": [{"kind": "cone", "radius": 1}]}, "obstacles[0]", "kind"),
         ({"start": [0, 0, 5]}, "start", ""),
         ({"goal": [0, 0, 5, 0, -1, 0, 1, 1, 1]}, "goal", "tilt"),
         ({"bounds": {"position_low": [0, 0, 0], "position_high": [1, -1, 1]}}, "bounds", "y"),
-        ({"obstacles": [{"kind": "mesh", "vertices": [[0, 0, 0]], "faces": [[0, 1, 2]]}]},
-         "obstacles[0]", "faces index"),  # fmt: skip
+        (
+            {"obstacles": [{"kind": "mesh", "vertices": [[0, 0, 0]], "faces": [[0, 1, 2]]}]},
+            "obstacles[0]",
+            "faces index",
+        ),
         ({"payload": {"mass": 0}}, "payload.mass", "greater than 0"),
         ({"colour": "red"}, "colour", "not permitted"),
     ],
@@ -57,11 +66,15 @@ def test_bad_scenes_name_the_field(change, field, reason):
 def test_missing_scene_and_missing_mesh_file(tmp_path):
     with pytest.raises(SceneError, match="no scene 'atlantis'"):
         load_scene("atlantis")
-    scene = scene_from_dict({
-        "obstacles": [{"kind": "mesh", "file": "nowhere.stl"}],
-        "bounds": BOUNDS, "start": HOVER, "goal": HOVER,
-    })  # fmt: skip
-    with pytest.raises(SceneError, match="mesh.file"):
+    scene = scene_from_dict(
+        {
+            "obstacles": [{"kind": "mesh", "file": "nowhere.stl"}],
+            "bounds": BOUNDS,
+            "start": HOVER,
+            "goal": HOVER,
+        }
+    )
+    with pytest.raises(SceneError, match=r"mesh\.file"):
         PlanningProblem.from_scene(scene, base_dir=tmp_path)
 
 
@@ -101,15 +114,15 @@ def test_invalid_start_error_names_constraints_and_bodies():
 
 def test_puzzle_witness_path_is_valid():
     """A path exists: the stored witness threads the long bar at a tilt (scene docstring)."""
-    import json  # noqa: PLC0415
+    import json
 
-    from flycrane.scene import SCENES_DIR  # noqa: PLC0415
+    from flycrane.scene import SCENES_DIR
 
     problem = PlanningProblem.named("puzzle")
     path = np.array(json.loads((SCENES_DIR / "puzzle_witness.json").read_text())["path"])
     np.testing.assert_allclose(path[0], problem.start, atol=1e-12)
     np.testing.assert_allclose(path[-1], problem.goal, atol=1e-12)
-    assert all(problem.validity.motion_is_valid(a, b) for a, b in zip(path[:-1], path[1:]))
+    assert all(problem.validity.motion_is_valid(a, b) for a, b in itertools.pairwise(path))
     assert path[:, 4].max() > 0.2
 
 
@@ -119,8 +132,12 @@ def test_puzzle_has_no_level_passage():
     heading collides (brute force), so no path exists without tilt."""
     problem = PlanningProblem.named("puzzle")
     slab_mid = 4.1
-    x, y, sigma = np.meshgrid(np.linspace(-0.6, 0.6, 13), np.linspace(-0.3, 0.3, 7),
-                              np.linspace(0, np.pi, 90, endpoint=False), indexing="ij")  # fmt: skip
+    x, y, sigma = np.meshgrid(
+        np.linspace(-0.6, 0.6, 13),
+        np.linspace(-0.3, 0.3, 7),
+        np.linspace(0, np.pi, 90, endpoint=False),
+        indexing="ij",
+    )
     q = np.zeros((x.size, 9))
     q[:, 0], q[:, 1], q[:, 5] = x.ravel(), y.ravel(), sigma.ravel()
     q[:, 2] = slab_mid + 1.6  # the long bar hangs 1.6 m below P
@@ -129,13 +146,14 @@ def test_puzzle_has_no_level_passage():
 
 
 def test_puzzle_is_not_solved_without_tilt():
-    from flycrane.planning.planners import PlannerOptions, plan  # noqa: PLC0415
+    from flycrane.planning.planners import PlannerOptions, plan
 
     problem = PlanningProblem.named("puzzle")
     level = problem.scene.model_copy(
         update={"bounds": problem.scene.bounds.model_copy(update={"max_tilt": 1e-9})}
     )
     flat = PlanningProblem.from_scene(level)
-    outcome = plan(flat.space, flat.validity, flat.start, flat.goal,
-                   PlannerOptions(time_budget=10.0, seed=1))  # fmt: skip
+    outcome = plan(
+        flat.space, flat.validity, flat.start, flat.goal, PlannerOptions(time_budget=10.0, seed=1)
+    )
     assert not outcome.result.status.solved

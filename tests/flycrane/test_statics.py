@@ -8,7 +8,10 @@ from scipy.optimize import minimize
 
 from flycrane.cable_system import CABLE_DRONE, CableSystem
 from flycrane.feasibility import Constraint, violations
-from flycrane.kinematics import drone_positions_from_configuration, platform_points_from_configuration
+from flycrane.kinematics import (
+    drone_positions_from_configuration,
+    platform_points_from_configuration,
+)
 from flycrane.statics import evaluate_statics, nominal_wrench, screw_jacobian
 from flycrane.statics_kernel import compiled_statics
 from flycrane.system import DRONE_CABLES, SystemSpec
@@ -33,7 +36,9 @@ def gravity_wrench(system: CableSystem, q: np.ndarray) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     phi, theta, sigma = q[3:6]
-    c = Rotation.from_euler("ZYZ", [phi, theta, sigma - phi]).apply(np.array(system.com_offset))  # scipy rejects read-only
+    c = Rotation.from_euler("ZYZ", [phi, theta, sigma - phi]).apply(
+        np.array(system.com_offset)
+    )  # scipy rejects read-only
     weight = np.array([0.0, 0.0, -system.platform_mass * G])
     return np.concatenate([weight, np.cross(c, weight)])
 
@@ -49,9 +54,9 @@ def test_nominal_tensions_balance_the_weight(name, request):
     q = random_feasible_configurations(system, np.random.default_rng(10), 200)
     report = evaluate_statics(system, q)
     for row in range(len(q)):
-        residual = equilibrium_matrix(system, q[row]) @ report.nominal_tension[row] + gravity_wrench(
-            system, q[row]
-        )
+        residual = equilibrium_matrix(system, q[row]) @ report.nominal_tension[
+            row
+        ] + gravity_wrench(system, q[row])
         np.testing.assert_allclose(residual, 0.0, atol=1e-9)
     # And in the code's own terms: J f0 = w0.
     jf0 = np.einsum("nab,nb->na", screw_jacobian(system, q), report.nominal_tension)
@@ -110,7 +115,7 @@ def test_tension_range_extremes_are_attained(system):
         for i in range(6):
             for sign, bound in ((1.0, report.tension_high[0, i]), (-1.0, report.tension_low[0, i])):
                 best = minimize(
-                    lambda d, i=i, sign=sign: -sign * (a_inv[i] @ (w0 + d)),
+                    lambda d, i=i, sign=sign, a_inv=a_inv, w0=w0: -sign * (a_inv[i] @ (w0 + d)),
                     x0=np.full(6, 1e-3),
                     constraints=[on_ellipsoid],
                     method="SLSQP",
@@ -147,8 +152,17 @@ def test_singular_jacobian_is_reported_not_nan(system):
         f0, v, m, cost = compiled_statics(system, [0, 0, 5, 0, 0, 0, 0, 0, 0])
     assert report.singular[0]
     assert not report.feasible[0]
-    for array in (report.nominal_tension, report.tension_low, report.tension_high,
-                  report.thrust_bound, report.slack_margin, f0, v, m, cost):  # fmt: skip
+    for array in (
+        report.nominal_tension,
+        report.tension_low,
+        report.tension_high,
+        report.thrust_bound,
+        report.slack_margin,
+        f0,
+        v,
+        m,
+        cost,
+    ):
         assert not np.isnan(array).any()
     assert cost[0] == np.inf
     assert [x.constraint for x in violations(report)] == [Constraint.SINGULAR]

@@ -22,8 +22,11 @@ def client(tmp_path_factory):
         ({"system": "nonesuch"}, ["body", "system"], "unknown preset 'nonesuch'"),
         ({"scene": "atlantis"}, ["body", "scene"], "no scene 'atlantis'"),
         ({"system": {"platform_mass": -1}}, ["body", "system", "platform_mass"], "greater than 0"),
-        ({"system": {"perturbation": {"matrix": (-np.eye(6)).tolist()}}},
-         ["body", "system", "perturbation", "matrix"], "positive definite"),  # fmt: skip
+        (
+            {"system": {"perturbation": {"matrix": (-np.eye(6)).tolist()}}},
+            ["body", "system", "perturbation", "matrix"],
+            "positive definite",
+        ),
         ({"start": [*RESCUE_START[:6], 1.45, 1.45, 1.45]}, ["body", "start"], "lowest tension"),
         ({"goal": [0, 0, 7.0, 0, 0, 0, 1, 1, 1]}, ["body", "goal"], "footbridge hits"),
         ({"planner": {"time_budget": 10_000}}, ["body", "planner", "time_budget"], "at most"),
@@ -43,11 +46,19 @@ def test_bad_task_is_refused_naming_the_field(client, body, location, message):
 
 
 def test_malformed_json_and_oversized_body(client):
-    response = client.post("/v1/tasks", content=b'{"scene": ', headers={"content-type": "application/json"})
+    response = client.post(
+        "/v1/tasks", content=b'{"scene": ', headers={"content-type": "application/json"}
+    )
     assert response.status_code == 422 and "JSON" in response.text
-    big = {"name": "x" * 100, "scene": {"bounds": {"position_low": [0, 0, 0], "position_high": [1, 1, 1]},
-           "start": RESCUE_START, "goal": RESCUE_START,
-           "obstacles": [{"kind": "sphere", "radius": 1.0}] * 2000}}  # fmt: skip
+    big = {
+        "name": "x" * 100,
+        "scene": {
+            "bounds": {"position_low": [0, 0, 0], "position_high": [1, 1, 1]},
+            "start": RESCUE_START,
+            "goal": RESCUE_START,
+            "obstacles": [{"kind": "sphere", "radius": 1.0}] * 2000,
+        },
+    }
     response = client.post("/v1/tasks", json=big)
     assert response.status_code == 413 and "larger than 20000 bytes" in response.text
     assert client.get("/v1/tasks").json()["total"] == 0
@@ -63,11 +74,14 @@ def test_unknown_task_and_artifact(client):
 
 
 def test_statics_what_if(client):
-    response = client.post("/v1/statics", json={"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1],
-                                                      [0, 0, 5, 0, 0, 0, 1.4, 1.4, 1.4]]})  # fmt: skip
+    response = client.post(
+        "/v1/statics", json={"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1], [0, 0, 5, 0, 0, 0, 1.4, 1.4, 1.4]]}
+    )
     assert response.status_code == 200
     feasible, slack = response.json()["results"]
-    assert feasible["feasible"] and feasible["cables"][0]["nominal_tension"] == pytest.approx(3.11, abs=0.01)
+    assert feasible["feasible"] and feasible["cables"][0]["nominal_tension"] == pytest.approx(
+        3.11, abs=0.01
+    )
     assert not slack["feasible"] and slack["violations"][0]["constraint"] == "slack"
     bad = client.post("/v1/statics", json={"q": [[0, 0, 5]]})
     assert bad.status_code == 422 and bad.json()["detail"][0]["loc"][:2] == ["body", "q"]
@@ -94,4 +108,6 @@ def test_token_guards_mutating_endpoints(tmp_path):
         good = {"Authorization": "Bearer s3cret"}
         assert client.post("/v1/tasks", json={"scene": "atlantis"}, headers=good).status_code == 422
         assert client.get("/v1/tasks").status_code == 200  # reading needs no token
-        assert client.post("/v1/statics", json={"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1]]}).status_code == 200
+        assert (
+            client.post("/v1/statics", json={"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1]]}).status_code == 200
+        )

@@ -43,7 +43,7 @@ def test_rescue_is_planned_and_every_artifact_is_served(done, tmp_path):
     names = set(task["artifacts"])
     expected = {"path.json", "tracks.json", "mission.mcap", "profile.png", "summary.json",
                 "bundle.zip"} | {f"drone{k}.{ext}" for k in (1, 2, 3)
-                                 for ext in ("waypoints", "plan", "mission.json")}  # fmt: skip
+                                 for ext in ("waypoints", "plan", "mission.json")}
     assert names == expected
     for k in (1, 2, 3):
         text = client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.waypoints").text
@@ -121,7 +121,7 @@ def test_cancel_stops_a_running_planner(tmp_path):
     # Puzzle as first specified is not solved in minutes: the planner is still running.
     with running_service(tmp_path) as client:
         accepted = client.post("/v1/tasks", json={"scene": "puzzle",
-                                                  "planner": {"time_budget": 300}})  # fmt: skip
+                                                  "planner": {"time_budget": 300}})
         task_id = accepted.json()["id"]
         wait_status(client, task_id, {"planning"})
         assert client.delete(f"/v1/tasks/{task_id}").json()["cancel_requested"]

@@ -13,7 +13,9 @@ router = APIRouter(prefix="/v1/presets", tags=["presets"])
 @router.get("/systems")
 def systems() -> dict[str, dict]:
     """Preset name -> full system description."""
-    return {name: spec.model_dump(mode="json", by_alias=True) for name, spec in SYSTEM_PRESETS.items()}
+    return {
+        name: spec.model_dump(mode="json", by_alias=True) for name, spec in SYSTEM_PRESETS.items()
+    }
 
 
 @router.get("/scenes")

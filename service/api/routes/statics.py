@@ -20,4 +20,4 @@ def statics(body: StaticsCreate) -> dict:
     system = CableSystem.from_spec(spec)
     report = evaluate_statics(system, body.q)
     return {"results": [statics_summary(system, report, body.cost_form, row)
-                        for row in range(len(body.q))]}  # fmt: skip
+                        for row in range(len(body.q))]}

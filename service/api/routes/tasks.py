@@ -54,13 +54,13 @@ def _check_limits(task: TaskSpec, state: ServiceState) -> None:
                 problems.append(FieldProblem(
                     f"scene.shape[{index}].file",
                     "mesh files cannot be referenced over HTTP; give vertices and faces",
-                ))  # fmt: skip
+                ))
     if problems:
         raise InputError(problems)
 
 
 @router.post("", status_code=202, response_model=TaskAccepted,
-             dependencies=[Depends(require_token)])  # fmt: skip
+             dependencies=[Depends(require_token)])
 async def create_task(
     task: TaskSpec, request: Request, state: ServiceState = Depends(get_state)
 ) -> TaskAccepted | JSONResponse:
@@ -74,7 +74,7 @@ async def create_task(
             {"detail": [{"loc": ["body", error.what], "msg": str(error.reason),
                          "type": "invalid_configuration"}]},
             status_code=422,
-        )  # fmt: skip
+        )
     except InputError:
         state.metrics.submissions.labels("invalid").inc()
         raise
@@ -102,7 +102,7 @@ def list_tasks(
     records, total = state.store.list(status, offset, limit)
     base = str(request.base_url)
     return TaskPage(items=[TaskPublic.of(r, base) for r in records], total=total,
-                    offset=offset, limit=limit)  # fmt: skip
+                    offset=offset, limit=limit)
 
 
 @router.get("/{task_id}", response_model=TaskPublic)
@@ -156,14 +156,14 @@ def _allowed(address: str, patterns: tuple[str, ...]) -> bool:
 
 @router.post("/{task_id}/upload", response_model=UploadPublic,
              dependencies=[Depends(require_token)],
-             responses={502: {"model": UploadPublic}})  # fmt: skip
+             responses={502: {"model": UploadPublic}})
 async def upload_task(
     task_id: str, body: UploadCreate, state: ServiceState = Depends(get_state)
 ) -> UploadPublic | JSONResponse:
     """Upload the three missions (drone k to ``vehicles[k-1]``), verify by read-back, record
     the outcome per vehicle. 502 if any vehicle failed (the others keep their mission)."""
-    from missions.formats import mission_from_json  # noqa: PLC0415
-    from missions.mavlink import FleetError, RetryPolicy, upload_to_vehicles  # noqa: PLC0415
+    from missions.formats import mission_from_json
+    from missions.mavlink import FleetError, RetryPolicy, upload_to_vehicles
 
     record = _record(state, task_id)
     refused = [v for v in body.vehicles if not _allowed(v, state.settings.upload_allow)]
@@ -177,21 +177,21 @@ async def upload_task(
         mission_from_json(json.loads(_artifact_path(state, record, f"drone{k}.mission.json")
                                      .read_text(encoding="utf-8")))
         for k in (1, 2, 3)
-    ]  # fmt: skip
+    ]
     policy = RetryPolicy(deadline_s=state.settings.upload_timeout)
     failures: dict[str, str] = {}
     try:
         await run_in_threadpool(upload_to_vehicles, list(body.vehicles), missions, policy)
     except FleetError as error:
         failures = {name: str(problem) for name, problem in error.failures.items()}
-    except Exception as error:  # noqa: BLE001 -- e.g. no heartbeat at all: every vehicle
+    except Exception as error:
         failures = {v: f"{type(error).__name__}: {error}" for v in body.vehicles}
     outcome = UploadPublic(
         ok=not failures,
         vehicles=[VehicleUpload(drone=k + 1, vehicle=v, ok=v not in failures,
                                 detail=failures.get(v, "uploaded and verified"))
                   for k, v in enumerate(body.vehicles)],
-    )  # fmt: skip
+    )
     state.store.add_upload(task_id, outcome.model_dump())
     if failures:
         return JSONResponse(outcome.model_dump(), status_code=502)

@@ -32,7 +32,10 @@ def test_ompl_peer_solves_and_its_path_is_valid_for_us(free_space, algorithm):
     assert result.status is PlannerStatus.EXACT_SOLUTION, result.reason
     np.testing.assert_allclose(result.path[0], START, atol=1e-12)
     np.testing.assert_allclose(result.path[-1], GOAL, atol=1e-12)
-    assert all(validity.motion_is_valid(a, b) for a, b in zip(result.path[:-1], result.path[1:]))
+    assert all(
+        validity.motion_is_valid(a, b)
+        for a, b in zip(result.path[:-1], result.path[1:], strict=False)
+    )
     assert result.statistics.nodes >= 2 and result.statistics.expansion_attempts >= 1
     assert "ompl" not in sys.modules  # the parent never loads libompl (exit-time double free)
 

@@ -34,7 +34,7 @@ def no_leaked_threads() -> Iterator[None]:
         # "Dummy-N" threads are foreign (C++) threads that once ran a Python callback,
         # e.g. MAVSDK's: Python lists them forever, they are not ours to join.
         leaked = [t for t in threading.enumerate() if t not in before and t.is_alive()
-                  and not t.name.startswith("Dummy-")]  # fmt: skip
+                  and not t.name.startswith("Dummy-")]
         if not leaked:
             return
         time.sleep(0.02)
@@ -87,7 +87,7 @@ def waypoint_mission(drone: int, count: int) -> DroneMission:
         MissionItem(0, MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_WAYPOINT,
                     x=round(HOME.lat_deg * 1e7), y=round(HOME.lon_deg * 1e7)),
         MissionItem(1, MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_TAKEOFF, z=5.0),
-    ]  # fmt: skip
+    ]
     for k in range(count):
         items.append(
             MissionItem(
@@ -97,5 +97,5 @@ def waypoint_mission(drone: int, count: int) -> DroneMission:
                 y=round(HOME.lon_deg * 1e7) - 37 * k,
                 z=5.0 + 0.123 * k,
             )
-        )  # fmt: skip
+        )
     return DroneMission(drone, tuple(items))

@@ -27,7 +27,7 @@ def test_mock_autopilot_process_answers_a_heartbeat_waiting_client():
          "--home", "46.5", "6.6", "400"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )  # fmt: skip
+    )
     try:
         policy = RetryPolicy(heartbeat_timeout_s=15.0, gcs_heartbeat_interval_s=0.2)
         with VehicleLink(f"udpout:127.0.0.1:{port}", policy) as link:
@@ -50,7 +50,7 @@ def test_mock_autopilot_process_answers_a_heartbeat_waiting_client():
 )
 def test_bad_arguments_exit_non_zero_with_a_message(args, message):
     done = subprocess.run([*FLYCRANE, "mock-autopilot", *args, "--duration", "1"],
-                          capture_output=True, text=True, timeout=30)  # fmt: skip
+                          capture_output=True, text=True, timeout=30)
     assert done.returncode == 2
     assert message in done.stderr
     assert "Traceback" not in done.stderr

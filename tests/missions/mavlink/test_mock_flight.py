@@ -18,7 +18,7 @@ speeds = st.floats(0.0, 8.0)
 
 
 @given(length=st.floats(0.01, 200.0), v_in=speeds, cruise=st.floats(0.1, 8.0),
-       exit_fraction=st.floats(0.0, 1.0), accel=st.floats(0.2, 5.0))  # fmt: skip
+       exit_fraction=st.floats(0.0, 1.0), accel=st.floats(0.2, 5.0))
 def test_speed_profile_is_a_bounded_acceleration_ride_along_the_whole_leg(
     length, v_in, cruise, exit_fraction, accel
 ):
@@ -87,7 +87,7 @@ def test_speed_scale_and_start_delay():
 
 def test_position_noise_has_the_configured_spread():
     flight = KinematicFlight(HOME, Dynamics(), Imperfections(position_noise_m=0.5, seed=4),
-                             epoch_utc=0.0)  # fmt: skip
+                             epoch_utc=0.0)
     samples = np.array([pymap3d.geodetic2enu(*flight.reported_geodetic(), HOME.lat_deg,
                                              HOME.lon_deg, HOME.alt_m) for _ in range(4000)])
     assert samples.std(axis=0) == pytest.approx([0.5, 0.5, 0.5], rel=0.06)
@@ -119,6 +119,6 @@ def test_loiter_unlimited_holds_and_never_completes():
     t, p, speed, events = fly(Imperfections(), items, limit=60.0)
     assert t[-1] >= 60.0  # still flying when the test stops it
     assert [(kind, seq) for _, kind, seq in events] == [
-        ("current", 1), ("reached", 1), ("current", 2)]  # fmt: skip
+        ("current", 1), ("reached", 1), ("current", 2)]
     assert p[-1] == pytest.approx([5.0, 0.0, 3.0], abs=0.01)  # 1e-7 degree steps
     assert speed[-1] == 0.0

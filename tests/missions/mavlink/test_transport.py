@@ -33,7 +33,7 @@ from .conftest import free_udp_port
                                                            device="/dev/serial/by-id/usb-ArduPilot"),
          "/dev/serial/by-id/usb-ArduPilot"),
     ],
-)  # fmt: skip
+)
 def test_connection_strings(address, spec, device):
     parsed = parse_connection(address)
     assert parsed == spec
@@ -58,5 +58,5 @@ def test_silent_port_times_out_at_heartbeat_within_the_stated_time():
             link.wait_heartbeat()
         elapsed = time.monotonic() - started
     assert (error.value.vehicle, error.value.stage, error.value.timeout_s) == (
-        "ghost", "HEARTBEAT", 0.5)  # fmt: skip
+        "ghost", "HEARTBEAT", 0.5)
     assert 0.5 <= elapsed < 0.8

@@ -44,7 +44,7 @@ def test_three_vehicles_upload_concurrently_and_hold_exactly_the_missions(
         # seq 0 reads back as the vehicle's home (ArduPilot), not as uploaded
         assert (report.home.frame, report.home.command) == (MavFrame.GLOBAL, MavCmd.NAV_WAYPOINT)
         assert (report.home.x, report.home.y) == (round(HOME.lat_deg * 1e7),
-                                                  round(HOME.lon_deg * 1e7))  # fmt: skip
+                                                  round(HOME.lon_deg * 1e7))
         assert report.home.z == pytest.approx(HOME.alt_m)
 
 
@@ -55,7 +55,7 @@ def test_both_request_kinds_are_answered(spawn_mock, fast_policy, request_int, e
     seen = []
     with VehicleLink(address, fast_policy) as link:
         link.add_listener(("MISSION_REQUEST", "MISSION_REQUEST_INT"),
-                          lambda msg: seen.append(msg.get_type()))  # fmt: skip
+                          lambda msg: seen.append(msg.get_type()))
         link.wait_heartbeat()
         report = upload_and_verify(link, waypoint_mission(1, 5), fast_policy)
     assert report.item_count == 7
@@ -124,4 +124,4 @@ def test_verification_names_the_first_difference():
     with pytest.raises(MissionVerificationError) as error:
         verify_mission("v", sent, back[:-1], Verification.ARDUPILOT)
     assert (error.value.seq, error.value.field, error.value.expected, error.value.actual) == (
-        None, "count", 5, 4)  # fmt: skip
+        None, "count", 5, 4)
