@@ -193,7 +193,7 @@ class TaskStore:
     def counts_by_status(self) -> dict[str, int]:
         query = select(TaskRow.status, func.count()).group_by(TaskRow.status)
         with self._session() as session:
-            counts = dict(session.execute(query).tuples().all())
+            counts = {status: count for status, count in session.execute(query).all()}
         return {s.value: int(counts.get(s.value, 0)) for s in TaskStatus}
 
     def add_upload(self, task_id: str, outcome: dict[str, Any]) -> None:
