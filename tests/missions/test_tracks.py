@@ -106,9 +106,7 @@ def test_track_starts_and_ends_at_rest(tracks, path, limits):
 
 
 @pytest.mark.parametrize("path", PATHS)
-def test_track_time_is_strictly_increasing_from_zero_and_follows_the_path(
-    system, tracks, path
-):
+def test_track_time_is_strictly_increasing_from_zero_and_follows_the_path(system, tracks, path):
     track = tracks[path, "defaults"]
     assert track.time[0] == 0.0
     assert np.all(np.diff(track.time) > 0)

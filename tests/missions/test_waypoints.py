@@ -14,7 +14,10 @@ import pytest
 
 from flycrane.cable_system import CABLE_DRONE
 from flycrane.direct_kinematics import configuration_from_drone_positions
-from flycrane.kinematics import drone_positions_from_configuration, platform_points_from_configuration
+from flycrane.kinematics import (
+    drone_positions_from_configuration,
+    platform_points_from_configuration,
+)
 from flycrane.statics import evaluate_statics
 from missions.options import MissionOptions
 from missions.tracks import track_from_path
@@ -75,7 +78,7 @@ def test_straight_legs_keep_the_load_valid_and_within_the_deviation_bounds(
     system, curved_track, plans, name
 ):
     plan, options = plans[name], OPTIONS[name]
-    t, drones, planned = straight_leg_flight(curved_track, plan, options.check_resolution / 10)
+    _, drones, planned = straight_leg_flight(curved_track, plan, options.check_resolution / 10)
     rebuilt = configuration_from_drone_positions(system, drones, initial=planned)
     assert rebuilt.converged.all()
     assert evaluate_statics(system, rebuilt.q).feasible.all()
@@ -121,8 +124,8 @@ def arc_track(system, space):
 
 
 def test_a_forbidden_region_on_the_chord_makes_the_reducer_add_waypoints(system, arc_track):
-    free = reduce_to_waypoints(system, arc_track, forbid_platform_point(system, [9] * 3,
-                                                                        [10] * 3), LOOSE)  # fmt: skip
+    nowhere = forbid_platform_point(system, [9] * 3, [10] * 3)
+    free = reduce_to_waypoints(system, arc_track, nowhere, LOOSE)
     assert free.ok and len(free.time) == 2  # one leg: the chord through the circle's centre
     box_low, box_high = (-0.3, -0.3, 3.0), (0.3, 0.3, 5.0)  # around the centre, off the arc
     validity = forbid_platform_point(system, box_low, box_high)
@@ -130,12 +133,12 @@ def test_a_forbidden_region_on_the_chord_makes_the_reducer_add_waypoints(system,
     plan = reduce_to_waypoints(system, arc_track, validity, LOOSE)
     assert plan.ok, plan.reason
     assert len(plan.time) > 2
-    t, drones, planned = straight_leg_flight(arc_track, plan, 0.01)
+    _, drones, planned = straight_leg_flight(arc_track, plan, 0.01)
     rebuilt = configuration_from_drone_positions(system, drones, initial=planned)
     assert rebuilt.converged.all()
     assert validity(rebuilt.q).all()
     # the free plan's single chord does cross the box: the test's premise
-    t, drones, planned = straight_leg_flight(arc_track, free, 0.01)
+    _, drones, planned = straight_leg_flight(arc_track, free, 0.01)
     crossing = configuration_from_drone_positions(system, drones, initial=planned)
     assert not validity(crossing.q).all()
 
