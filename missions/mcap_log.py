@@ -206,7 +206,9 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
         json_schema = writer.register_schema(
             "flycrane.Record", "jsonschema", json.dumps({"type": "object"}).encode()
         )
-        for topic in {m[1] for m in messages} - channels.keys():
+        # Sorted: set order follows Python's per-process string hashing, and would number
+        # the channels differently in every run (same inputs, different files).
+        for topic in sorted({m[1] for m in messages} - channels.keys()):
             channels[topic] = writer.register_channel(topic, "json", json_schema)
         for sequence, (stamp, topic, data) in enumerate(messages):
             writer.add_message(channels[topic], stamp, data, stamp, sequence)
