@@ -9,6 +9,10 @@ from __future__ import annotations
 
 import itertools
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -212,3 +216,36 @@ def test_drone_fixes_are_the_planned_positions_in_wgs84(log, curved_track):
         np.testing.assert_allclose(fixes[:, 1], lon, atol=1e-9)
         np.testing.assert_allclose(fixes[:, 2], 488.0 + curved_track.drones[samples, j, 2],
                                    atol=1e-4)  # fmt: skip
+
+
+WRITE_TINY_LOG = """
+import sys
+from flycrane.cable_system import CableSystem
+from flycrane.scene import load_scene
+from missions.annotations import annotate
+from missions.builder import build_missions
+from missions.mcap_log import LogInputs, write_mcap
+from missions.options import MissionOptions
+from missions.tracks import Track
+from tests.missions.helpers import hand_made_plan
+
+plan = hand_made_plan([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [4.0, 5.0])
+system, options = CableSystem.from_spec(), MissionOptions()
+write_mcap(sys.argv[1], LogInputs(
+    system, load_scene("rescue")[0], Track(plan.time, plan.q, plan.drones),
+    annotate(system, plan.time, plan.q), build_missions(plan, options), options,
+    START_NS, {"planner": {"seed": 0}}))
+""".replace("START_NS", str(START_NS))
+
+
+def test_the_same_inputs_give_the_same_log_bytes(tmp_path):
+    """Python randomises string hashing per process: nothing in the file may depend on it."""
+    root = Path(__file__).resolve().parents[2]
+    logs = []
+    for seed in ("1", "2"):
+        path = tmp_path / f"log{seed}.mcap"
+        env = {**os.environ, "PYTHONHASHSEED": seed, "PYTHONPATH": str(root)}
+        subprocess.run([sys.executable, "-c", WRITE_TINY_LOG, str(path)], cwd=root, env=env,
+                       check=True, timeout=120)  # fmt: skip
+        logs.append(path.read_bytes())
+    assert logs[0] == logs[1]
