@@ -35,9 +35,11 @@ from missions.items import DroneMission, MavCmd, MavFrame, MissionItem
 from missions.options import MissionOptions
 from missions.waypoints import WaypointPlan
 
-#: Speed changes smaller than this are not worth a DO_CHANGE_SPEED item [m/s] (a leg of
-#: 10 s would take 10 ms longer or shorter).
-SPEED_EPSILON = 0.001
+#: Speed changes smaller than this fraction of the new speed are not worth a DO_CHANGE_SPEED
+#: item (a leg of 10 s takes at most 10 ms longer or shorter). Relative, not absolute: the
+#: vertical components of near-level legs are millimetres per second, and an absolute 1 mm/s
+#: kept from the previous leg made such a leg last up to 60 % longer (the climb limit binds).
+SPEED_TOLERANCE = 0.001
 #: ArduCopter ignores horizontal speeds below WPNAV_WP_SPEED_MIN (10 cm/s in 4.5) and keeps
 #: the previous, faster one. A leg that also climbs or descends is still timed by its
 #: vertical speed; a level one may run early (flagged in the summary).
@@ -109,13 +111,13 @@ def build_missions(plan: WaypointPlan, options: MissionOptions) -> list[DroneMis
         ground = climb = descent = None
         for k in range(len(plan.time) - 1):
             h, v = float(speeds.horizontal[k, j]), float(speeds.vertical[k, j])
-            if h > 1e-6 and (ground is None or abs(h - ground) > SPEED_EPSILON):
+            if h > 1e-6 and (ground is None or abs(h - ground) > SPEED_TOLERANCE * h):
                 items.append(_speed_item(GROUND_SPEED, h))
                 ground = h
-            if v > 1e-6 and (climb is None or abs(v - climb) > SPEED_EPSILON):
+            if v > 1e-6 and (climb is None or abs(v - climb) > SPEED_TOLERANCE * v):
                 items.append(_speed_item(CLIMB_SPEED, v))
                 climb = v
-            elif v < -1e-6 and (descent is None or abs(-v - descent) > SPEED_EPSILON):
+            elif v < -1e-6 and (descent is None or abs(-v - descent) > SPEED_TOLERANCE * -v):
                 items.append(_speed_item(DESCENT_SPEED, -v))
                 descent = -v
             items.append(_position_item(MavCmd.NAV_WAYPOINT, lat[k + 1, j], lon[k + 1, j],

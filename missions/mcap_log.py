@@ -108,7 +108,10 @@ def _crane_update(inputs: LogInputs, q: np.ndarray, stamp: int) -> SceneUpdate:
     rotation = matrix_from_tilt_torsion(q[3:6])
     b = platform_points_from_configuration(system, q)[0]
     a = drone_positions_from_configuration(system, q)[0]
+    # Points in world coordinates, so an identity pose: an unset proto3 pose reads as the
+    # quaternion (0, 0, 0, 0), which is no rotation at all for a reader that applies it.
     platform = entity.triangles.add()
+    _set_pose(platform.pose, np.zeros(3), np.eye(3))
     for point_xyz in b[[0, 2, 4]]:
         point = platform.points.add()
         point.x, point.y, point.z = map(float, point_xyz)
@@ -116,6 +119,7 @@ def _crane_update(inputs: LogInputs, q: np.ndarray, stamp: int) -> SceneUpdate:
     for shape in inputs.scene.payload.shapes:
         _add_shape(entity, shape, q[:3], rotation, ORANGE)
     cables = entity.lines.add()
+    _set_pose(cables.pose, np.zeros(3), np.eye(3))  # world points, as for the platform
     cables.type = 2  # LINE_LIST
     cables.thickness = 0.02
     for i in range(6):
@@ -203,7 +207,9 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
         json_schema = writer.register_schema(
             "flycrane.Record", "jsonschema", json.dumps({"type": "object"}).encode()
         )
-        for topic in {m[1] for m in messages} - channels.keys():
+        # Sorted: set order follows Python's per-process string hashing, and would number
+        # the channels differently in every run (same inputs, different files).
+        for topic in sorted({m[1] for m in messages} - channels.keys()):
             channels[topic] = writer.register_channel(topic, "json", json_schema)
         for sequence, (stamp, topic, data) in enumerate(messages):
             writer.add_message(channels[topic], stamp, data, stamp, sequence)

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from datetime import datetime
+from datetime import UTC, datetime
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 
 class GeodeticOrigin(BaseModel):
@@ -54,3 +54,13 @@ class MissionOptions(BaseModel):
     )
     end: Literal["hold", "land"] = Field("hold", description="after the last waypoint")
     altitude_frame: Literal["relative", "amsl"] = "relative"
+
+    @field_validator("start_time_utc")
+    @classmethod
+    def _in_utc(cls, value: datetime | None) -> datetime | None:
+        """An instant in UTC. The NAV_DELAY barrier takes its hour from this value and the
+        log its epoch time: a time given with an offset ("16:30+02:00") must become 14:30,
+        and a naive one is UTC (as the name says), not the machine's local time."""
+        if value is None:
+            return None
+        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)

@@ -1,0 +1,135 @@
+"""The whole job on the default Rescue task, task resolution errors, and ``flycrane plan``.
+
+Artifacts are opened with their real readers (pymavlink's MAVWPLoader, json, the mcap
+reader); the missions are checked end to end against the scene's start and goal and
+against ArduCopter's leg-timing rule.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from pymavlink import mavwp
+
+from flycrane.cable_system import CableSystem
+from flycrane.cli import main
+from flycrane.errors import InputError
+from flycrane.kinematics import drone_positions_from_configuration
+from flycrane.planning.planners import PlannerOptions
+from flycrane.planning.validity import InvalidConfigurationError
+from flycrane.scene import load_scene
+from missions.formats import mission_from_json
+from missions.items import MavCmd
+from missions.options import MissionOptions
+from missions.pipeline import run_task
+from missions.task import TaskSpec, resolve_task
+from tests.missions.helpers import approximate_geodetic, flown_leg_durations
+
+TASK = TaskSpec(planner=PlannerOptions(seed=0, time_budget=60))
+
+
+@pytest.fixture(scope="module")
+def rescue(tmp_path_factory):
+    out = tmp_path_factory.mktemp("rescue")
+    return run_task(TASK, out), out
+
+
+def test_default_rescue_task_is_done_with_every_artifact(rescue):
+    outcome, out = rescue
+    assert outcome.status == "done", outcome.reason
+    assert outcome.planner_status == "exact_solution"
+    expected = {"path.json", "tracks.json", "mission.mcap", "profile.png", "summary.json"}
+    expected |= {f"drone{j}.{kind}" for j in (1, 2, 3) for kind in
+                 ("waypoints", "plan", "mission.json")}  # fmt: skip
+    assert set(outcome.artifacts.values()) == expected
+    for name in expected:
+        assert (out / name).stat().st_size > 0, name
+    assert (out / "profile.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    assert summary["status"] == "done"
+    assert summary["mission"] == json.loads(json.dumps(outcome.mission))
+    assert 0.0 < summary["mission"]["timing_tolerance"]["start_offset"]
+
+
+def test_rescue_files_load_with_their_readers_and_agree(rescue):
+    outcome, out = rescue
+    waypoints = outcome.mission["waypoints"]
+    for j in (1, 2, 3):
+        loader = mavwp.MAVWPLoader()
+        count = loader.load(str(out / f"drone{j}.waypoints"))
+        assert count == outcome.mission["items_per_drone"][j - 1]
+        commands = [loader.wp(i).command for i in range(count)]
+        # home, the start and one NAV_WAYPOINT per timed waypoint after the first
+        assert commands.count(MavCmd.NAV_WAYPOINT) == waypoints + 1
+        mission = mission_from_json(json.loads((out / f"drone{j}.mission.json").read_text()))
+        assert [int(it.command) for it in mission.items] == commands
+        plan = json.loads((out / f"drone{j}.plan").read_text(encoding="utf-8"))
+        assert len(plan["mission"]["items"]) == count - 1
+    with (out / "mission.mcap").open("rb") as stream:
+        reader = make_reader(stream)
+        topics = {c.topic for c in reader.get_summary().channels.values()}
+        assert {"/scene", "/tf", "/drone1/fix", "/annotations/cost"} <= topics
+        assert sum(1 for _ in reader.iter_messages(topics=["/annotations/cost"])) == waypoints
+    tracks = json.loads((out / "tracks.json").read_text(encoding="utf-8"))
+    assert len(tracks["time"]) == len(tracks["drones_enu"]) == waypoints
+    path = json.loads((out / "path.json").read_text(encoding="utf-8"))
+    assert len(path["configurations"]) >= 2
+
+
+def test_rescue_missions_fly_from_the_scene_start_to_its_goal_on_time(rescue):
+    _, out = rescue
+    scene, _ = load_scene("rescue")
+    system = CableSystem.from_spec(scene.system_spec())
+    ends = drone_positions_from_configuration(system, [scene.start, scene.goal])
+    tracks = json.loads((out / "tracks.json").read_text(encoding="utf-8"))
+    drones, time = np.array(tracks["drones_enu"]), np.array(tracks["time"])
+    origin = MissionOptions().origin
+    for j in (1, 2, 3):
+        items = mission_from_json(json.loads((out / f"drone{j}.mission.json").read_text())).items
+        positions = [it for it in items if it.command == MavCmd.NAV_WAYPOINT][1:]
+        for item, enu in ((positions[0], ends[0][j - 1]), (positions[-1], ends[1][j - 1])):
+            lat, lon = approximate_geodetic(enu, origin)
+            assert abs(item.x - lat * 1e7) <= 0.51 and abs(item.y - lon * 1e7) <= 0.51
+            assert item.z == pytest.approx(enu[2], abs=1e-6)
+        flown = flown_leg_durations(
+            mission_from_json(json.loads((out / f"drone{j}.mission.json").read_text())),
+            np.diff(drones[:, j - 1], axis=0),
+        )
+        np.testing.assert_allclose(flown, np.diff(time), rtol=1e-3, err_msg=f"drone {j}")
+
+
+def test_a_start_in_collision_is_refused_naming_the_bodies():
+    on_the_ground = (0.0, 0.0, 0.2, 0.0, 0.0, np.pi / 2, 1.0, 1.0, 1.0)  # bridge 0.2 m too low
+    with pytest.raises(InvalidConfigurationError) as caught:
+        resolve_task(TaskSpec(start=on_the_ground))
+    assert caught.value.what == "start"
+    assert ("footbridge", "ground") in {(c.body, c.other) for c in caught.value.reason.contacts}
+    assert "footbridge hits ground" in str(caught.value)
+
+
+def test_a_goal_inside_a_building_names_the_building():
+    with pytest.raises(InvalidConfigurationError) as caught:
+        resolve_task(TaskSpec(goal=(-6.0, 0.0, 4.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)))
+    assert caught.value.what == "goal"
+    assert {c.other for c in caught.value.reason.contacts} == {"west building"}
+
+
+def test_an_unknown_scene_is_an_input_error_naming_the_scene_field():
+    with pytest.raises(InputError) as caught:
+        resolve_task(TaskSpec(scene="atlantis"))
+    assert [p.field for p in caught.value.problems] == ["scene"]
+    assert "atlantis" in str(caught.value) and "rescue" in str(caught.value)
+
+
+def test_plan_command_prints_where_the_missions_are(tmp_path, capsys):
+    assert main(["plan", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "status: done" in out
+    for j in (1, 2, 3):
+        assert str(tmp_path / f"drone{j}.waypoints") in out
+        assert (tmp_path / f"drone{j}.waypoints").exists()
+    assert str(tmp_path / "mission.mcap") in out
+    assert str(tmp_path / "summary.json") in out
