@@ -99,12 +99,16 @@ def plot_profile_bands(
         if not profiles:
             continue
         x = 100 * profiles[0].fraction
-        t = np.stack([p.tension for p in profiles])  # (P, S, 6)
-        f = np.stack([p.thrust for p in profiles])  # (P, S, 3)
-        tensions.fill_between(x, t.min(axis=(0, 2)), t.max(axis=(0, 2)), color=colour,
-                              alpha=0.3, label=f"{label} ({len(profiles)} paths)")
-        thrusts.fill_between(x, f.min(axis=(0, 2)), f.max(axis=(0, 2)), color=colour,
-                             alpha=0.3, label=f"{label} ({len(profiles)} paths)")
+        # Lowest tension any cable may reach under the perturbations (t_lo) up to the
+        # highest (t_hi); nominal thrust up to the worst case (m_k): how close each planner's
+        # paths come to slack cables and saturated drones.
+        low = np.stack([p.tension_low for p in profiles]).min(axis=(0, 2))
+        high = np.stack([p.tension_high for p in profiles]).max(axis=(0, 2))
+        thrust_low = np.stack([p.thrust for p in profiles]).min(axis=(0, 2))
+        thrust_high = np.stack([p.thrust_bound for p in profiles]).max(axis=(0, 2))
+        label_n = f"{label} ({len(profiles)} paths)"
+        tensions.fill_between(x, low, high, color=colour, alpha=0.3, label=label_n)
+        thrusts.fill_between(x, thrust_low, thrust_high, color=colour, alpha=0.3, label=label_n)
     for axis, limits, name in (
         (tensions, (system.tension_min.min(), system.tension_max.max()), "cable tension [N]"),
         (thrusts, (None, system.max_thrusts.max()), "drone thrust [N]"),
