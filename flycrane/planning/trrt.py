@@ -242,8 +242,12 @@ class TRRT:
             counts["X"] += 1
             q_rand = goal if rng.random() < cfg.goal_bias else self.space.sample_uniform(rng)[0]
             near, distance = tree.nearest(self.space.embed(q_rand)[0])
-            if cfg.refinement_control and not refinement_allowed(
-                distance, cfg.step, tree.refinement_nodes, tree.size, cfg.refinement_ratio
+            if (
+                cfg.refinement_control
+                and q_rand is not goal  # goal-biased samples aim at the goal, not at refining
+                and not refinement_allowed(
+                    distance, cfg.step, tree.refinement_nodes, tree.size, cfg.refinement_ratio
+                )
             ):
                 counts["refinement"] += 1
                 continue
