@@ -43,9 +43,11 @@ from missions.waypoints import WaypointPlan
 #: Speed changes smaller than this are not worth a DO_CHANGE_SPEED item [m/s] (a leg of
 #: 10 s would take 10 ms longer or shorter).
 SPEED_EPSILON = 0.001
-#: ArduCopter ignores horizontal speeds below WPNAV_WP_SPEED_MIN (10 cm/s in 4.5); such
-#: legs keep the previous speed limit and may run early (flagged in the summary).
-ARDUCOPTER_MIN_GROUND_SPEED = 0.10
+#: ArduCopter ignores horizontal speeds below WPNAV_WP_SPEED_MIN (AC_WPNav set_speed_NE):
+#: 20 cm/s up to Copter 4.5 (ArduPilot PR #5508), 10 cm/s after PR #27952 (August 2024),
+#: 1 cm/s in later masters. Such legs keep the previous limit (flagged in the summary): a
+#: leg that also climbs or descends still gets its duration from the vertical limit.
+ARDUCOPTER_MIN_GROUND_SPEED = 0.20
 #: DO_CHANGE_SPEED speed types (param1).
 GROUND_SPEED, CLIMB_SPEED, DESCENT_SPEED = 1, 2, 3
 
