@@ -13,8 +13,10 @@ enough to check timing and geometry of multi-drone missions.
   straight 3-D line to the item at the current speed, with the along-track speed changing at
   most ``max_accel_mps2``; param1 is the hold time [s] at the waypoint. DO_CHANGE_SPEED
   sets the speed (param2 [m/s]; param1 0/1 horizontal, 2 climb, 3 descent) from the next
-  leg on: do-commands between two nav items take effect when the leg to the second one
-  starts, as ArduPilot's AP_Mission runs them. NAV_DELAY waits param1 seconds, or with
+  leg on (do-commands between two nav items take effect when the leg to the second one
+  starts, as ArduPilot's AP_Mission runs them); a horizontal speed below
+  ``min_ground_speed_mps`` is ignored, as ArduCopter's AC_WPNav does (WPNAV_WP_SPEED_MIN,
+  20 cm/s up to Copter 4.5). NAV_DELAY waits param1 seconds, or with
   param1 = -1 until the UTC time of day param2:param3:param4 (hour:minute:second, -1 to
   ignore the hour or minute; ArduPilot's AP_RTC rule: the next such time, so a time just
   past waits a day). The specification has a 1 s resolution (no fraction of a second can be
@@ -114,6 +116,7 @@ class Dynamics:
     climb_speed_mps: float = 2.5
     descent_speed_mps: float = 1.5
     land_speed_mps: float = 0.5
+    min_ground_speed_mps: float = 0.2  #: smaller DO_CHANGE_SPEED ground speeds are ignored
 
     def __post_init__(self) -> None:
         _positive("Dynamics", **{k: getattr(self, k) for k in self.__dataclass_fields__})
@@ -386,7 +389,7 @@ class KinematicFlight:
             self._climb = item.param2
         elif int(item.param1) == 3:
             self._descent = item.param2
-        else:
+        elif item.param2 >= self.dynamics.min_ground_speed_mps:
             self._cruise = item.param2
 
     @staticmethod
