@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 
 from missions.geodesy import (
     DEGREE_UNIT,
+    ardupilot_altitude,
     degrees_to_int,
     enu_from_geodetic,
     geodetic_from_enu,
@@ -100,13 +101,18 @@ def build_missions(plan: WaypointPlan, options: MissionOptions) -> list[DroneMis
     home_lat, home_lon, home_amsl = geodetic_from_enu(
         np.concatenate([plan.drones[0, :, :2], np.zeros((3, 1))], axis=1), origin
     )
-    # Speeds of the legs as the items encode them: latitude and longitude rounded to 1e-7
-    # degree (~1 cm). The ground and vertical limits are both exact for a leg, so a limit
-    # computed from unrounded positions slows the leg down whenever rounding lengthens its
-    # horizontal part: near-vertical legs move only centimetres sideways, and rounding
-    # changed those by up to 25 %, i.e. legs 5 % slower (0.26 s on the Rescue lift).
+    # Speeds of the legs as the autopilot gets them: latitude and longitude rounded to 1e-7
+    # degree (~1 cm), altitudes truncated to whole centimetres (ArduPilot). The ground and
+    # vertical limits are both exact for a leg, so a limit computed from unrounded positions
+    # slows the leg down whenever rounding lengthens that part: near-vertical legs move only
+    # centimetres sideways and level ones centimetres up. On the Rescue plan rounding made a
+    # lift leg 5 % slower (0.26 s) and truncation would add up to 25 % to level legs (drone
+    # 1 would end 1 s late, seven times the plan's timing tolerance).
+    stored = ardupilot_altitude(height)
     encoded = enu_from_geodetic(degrees_to_int(lat) * DEGREE_UNIT,
-                                degrees_to_int(lon) * DEGREE_UNIT, amsl, origin)  # fmt: skip
+                                degrees_to_int(lon) * DEGREE_UNIT,
+                                stored + origin.altitude if relative else stored,
+                                origin)  # fmt: skip
     speeds = LegSpeeds.between(plan.time, encoded)
     missions = []
     for j in range(3):
