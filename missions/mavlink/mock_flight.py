@@ -9,7 +9,9 @@ enough to check timing and geometry of multi-drone missions.
   offset, to imitate vehicles whose clocks disagree, design.md section 9).
 - **Space.** Positions are local ENU metres about a fixed origin (the configured start
   position); geodetic <-> ENU goes through pymap3d.
-- **Commands.** NAV_TAKEOFF climbs vertically to the item altitude. NAV_WAYPOINT flies the
+- **Commands.** Altitudes are flown as ArduPilot stores them, in whole centimetres
+  (:func:`~missions.geodesy.ardupilot_altitude`; a download still returns the items as
+  uploaded). NAV_TAKEOFF climbs vertically to the item altitude. NAV_WAYPOINT flies the
   straight 3-D line to the item at the current speed, with the along-track speed changing at
   most ``max_accel_mps2``; param1 is the hold time [s] at the waypoint. DO_CHANGE_SPEED
   sets the speed (param2 [m/s]; param1 0/1 horizontal, 2 climb, 3 descent) from the next
@@ -43,6 +45,7 @@ import numpy as np
 import pymap3d
 
 from flycrane.errors import FieldProblem, InputError
+from missions.geodesy import ardupilot_altitude
 from missions.items import MavCmd, MissionItem
 
 #: The commands the mock flies; anything else is refused at upload (MAV_MISSION_UNSUPPORTED).
@@ -323,7 +326,8 @@ class KinematicFlight:
 
     def enu_from_item(self, item: MissionItem, home_alt_m: float) -> np.ndarray:
         """ENU [m] of a location item (x = y = 0 keeps the current horizontal position)."""
-        alt = item.z + home_alt_m if int(item.frame) in RELATIVE_ALT_FRAMES else item.z
+        z = float(ardupilot_altitude(item.z))  # whole centimetres, as AP_Mission stores them
+        alt = z + home_alt_m if int(item.frame) in RELATIVE_ALT_FRAMES else z
         if item.x == 0 and item.y == 0:
             e, n = self.position[0], self.position[1]
             u = alt - self.origin.alt_m

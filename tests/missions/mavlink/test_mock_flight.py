@@ -147,3 +147,13 @@ def test_ground_speeds_below_the_minimum_are_ignored_but_not_vertical_ones():
     _, _, _, events = fly(Imperfections(), legs(ground=0.25, climb=0.1))
     # 0.25 m/s obeyed: 0.1 s ramps, 1.975 m at 0.25 m/s, the hold
     assert reached_at(events, 3) - reached_at(events, 1) == pytest.approx(9.1, abs=0.02)
+
+
+def test_altitudes_are_flown_in_the_centimetres_ardupilot_keeps():
+    """AP_Mission stores z * 100.0f truncated to an integer of centimetres."""
+    items = (home_item(), item(1, MavCmd.NAV_TAKEOFF, z=2.026),
+             item(2, MavCmd.NAV_WAYPOINT, en=(0.0, 1.0), z=1.999))  # fmt: skip
+    _, p, _, _ = fly(Imperfections(), items)
+    # the top of the takeoff, sampled within 0.13 mm of it (2.5 m/s^2 for 0.01 s from rest)
+    assert p[:, 2].max() == pytest.approx(2.02, abs=5e-4)
+    assert p[-1, 2] == pytest.approx(1.99, abs=1e-6)  # ENU "up" bends 0.1 um over 1 m
