@@ -53,8 +53,8 @@ from missions.waypoints import planned_configurations
 from .mavlink.conftest import free_udp_port, no_leaked_threads  # noqa: F401 (autouse fixture)
 
 SPEEDUP = 10.0
-#: GLOBAL_POSITION_INT at every step of the mocks (sim_step_s = 0.02 s), ArduCopter's
-#: highest stream rate. One sample per step also times MISSION_ITEM_REACHED to one step.
+#: GLOBAL_POSITION_INT at every step of the mocks (sim_step_s = 0.02 s): the most samples
+#: for the noise test, and one per step times MISSION_ITEM_REACHED to a step.
 STREAM_HZ = 50.0
 STEP_S = 1.0 / STREAM_HZ
 #: Start synchronisation seen in the telemetry [s]: the mocks' step grids differ in phase
@@ -76,8 +76,9 @@ ARRIVAL_SPREAD_S = 0.5
 #: removes shifts common to all three); MAVLink's 1e-7 degree coordinates, 0.011; progress
 #: matched to the nearest dense sample of the plan (0.02 apart), 0.01. Sum 0.12.
 PLATFORM_TOLERANCE_M = 0.15
-#: Noise handling (test_imperfect_flight): positions fused with the noise-free reported
-#: velocity; the position offset is a local linear fit over this window [s] (module below).
+#: Noise handling (the imperfect flights): positions fused with the noise-free reported
+#: velocity, the position offset fitted as a local line over this window [s]
+#: (:func:`fused_positions`).
 FUSION_WINDOW_S = 4.0
 
 
