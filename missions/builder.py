@@ -30,7 +30,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from missions.geodesy import degrees_to_int, geodetic_from_enu
+from missions.geodesy import (
+    DEGREE_UNIT,
+    ardupilot_altitude,
+    degrees_to_int,
+    enu_from_geodetic,
+    geodetic_from_enu,
+)
 from missions.items import DroneMission, MavCmd, MavFrame, MissionItem
 from missions.options import MissionOptions
 from missions.waypoints import WaypointPlan
@@ -40,10 +46,11 @@ from missions.waypoints import WaypointPlan
 #: vertical components of near-level legs are millimetres per second, and an absolute 1 mm/s
 #: kept from the previous leg made such a leg last up to 60 % longer (the climb limit binds).
 SPEED_TOLERANCE = 0.001
-#: ArduCopter ignores horizontal speeds below WPNAV_WP_SPEED_MIN (10 cm/s in 4.5) and keeps
-#: the previous, faster one. A leg that also climbs or descends is still timed by its
-#: vertical speed; a level one may run early (flagged in the summary).
-ARDUCOPTER_MIN_GROUND_SPEED = 0.10
+#: ArduCopter ignores horizontal speeds below WPNAV_WP_SPEED_MIN (AC_WPNav set_speed_NE):
+#: 20 cm/s up to Copter 4.5 (ArduPilot PR #5508), 10 cm/s after PR #27952 (August 2024),
+#: 1 cm/s in later masters. Such legs keep the previous limit (flagged in the summary): a
+#: leg that also climbs or descends still gets its duration from the vertical limit.
+ARDUCOPTER_MIN_GROUND_SPEED = 0.20
 #: DO_CHANGE_SPEED speed types (param1).
 GROUND_SPEED, CLIMB_SPEED, DESCENT_SPEED = 1, 2, 3
 
@@ -57,8 +64,13 @@ class LegSpeeds:
 
     @classmethod
     def of(cls, plan: WaypointPlan) -> LegSpeeds:
-        delta = np.diff(plan.drones, axis=0)  # (L, 3 drones, 3)
-        duration = np.diff(plan.time)[:, None]
+        return cls.between(plan.time, plan.drones)
+
+    @classmethod
+    def between(cls, time: NDArray[np.float64], drones: NDArray[np.float64]) -> LegSpeeds:
+        """Speeds of drones (K, 3, 3) [m] flying straight legs between times (K,) [s]."""
+        delta = np.diff(drones, axis=0)  # (L, 3 drones, 3)
+        duration = np.diff(time)[:, None]
         return cls(np.linalg.norm(delta[..., :2], axis=-1) / duration, delta[..., 2] / duration)
 
     def slow_legs(self) -> list[tuple[int, int]]:
@@ -92,7 +104,19 @@ def build_missions(plan: WaypointPlan, options: MissionOptions) -> list[DroneMis
     home_lat, home_lon, home_amsl = geodetic_from_enu(
         np.concatenate([plan.drones[0, :, :2], np.zeros((3, 1))], axis=1), origin
     )
-    speeds = LegSpeeds.of(plan)
+    # Speeds of the legs as the autopilot gets them: latitude and longitude rounded to 1e-7
+    # degree (~1 cm), altitudes truncated to whole centimetres (ArduPilot). The ground and
+    # vertical limits are both exact for a leg, so a limit computed from unrounded positions
+    # slows the leg down whenever rounding lengthens that part: near-vertical legs move only
+    # centimetres sideways and level ones centimetres up. On the Rescue plan rounding made a
+    # lift leg 5 % slower (0.26 s) and truncation would add up to 25 % to level legs (drone
+    # 1 would end 1 s late, seven times the plan's timing tolerance).
+    stored = ardupilot_altitude(height)
+    encoded = enu_from_geodetic(degrees_to_int(lat) * DEGREE_UNIT,
+                                degrees_to_int(lon) * DEGREE_UNIT,
+                                stored + origin.altitude if relative else stored,
+                                origin)  # fmt: skip
+    speeds = LegSpeeds.between(plan.time, encoded)
     missions = []
     for j in range(3):
         items = [

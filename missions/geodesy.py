@@ -2,7 +2,9 @@
 
 MISSION_ITEM_INT carries latitude and longitude as integers of 1e-7 degree (about 1.1 cm).
 We round half away from zero, never truncate: truncation biases every coordinate towards
-the equator and the prime meridian, by up to 1.1 cm, differently for each drone.
+the equator and the prime meridian, by up to 1.1 cm, differently for each drone. The
+altitude travels as a float32 [m]; ArduPilot keeps it in whole centimetres
+(:func:`ardupilot_altitude`).
 """
 
 from __future__ import annotations
@@ -44,3 +46,13 @@ def degrees_to_int(degrees: ArrayLike) -> NDArray[np.int64]:
     # point, and must round up like the decimal it stands for.
     scaled = np.round(np.asarray(degrees, dtype=float) / DEGREE_UNIT, 6)
     return (np.sign(scaled) * np.floor(np.abs(scaled) + 0.5)).astype(np.int64)
+
+
+def ardupilot_altitude(z: ArrayLike) -> NDArray[np.float64]:
+    """Altitude [m] ArduPilot flies for a MISSION_ITEM_INT ``z`` [m].
+
+    AP_Mission stores ``packet.z * 100.0f`` in an integer of centimetres (Location::alt):
+    the float32 product, truncated towards zero. So 2.026 m is flown as 2.02 m.
+    """
+    product = np.asarray(z, dtype=np.float32) * np.float32(100.0)
+    return np.trunc(product).astype(np.float64) / 100.0

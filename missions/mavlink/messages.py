@@ -173,6 +173,34 @@ def item_from_message(msg: Any) -> MissionItem:
     )
 
 
+#: The fields :func:`item_difference` compares, in the order it compares them.
+COMPARED_FIELDS = ("command", "frame", "autocontinue", "mission_type", "x", "y",
+                   "param1", "param2", "param3", "param4", "z")  # fmt: skip
+#: Commands whose location AP_Mission stores (altitude in whole centimetres).
+_STORED_LOCATION = frozenset(
+    {MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_UNLIM, MavCmd.NAV_LAND, MavCmd.NAV_TAKEOFF}
+)
+
+
+def ardupilot_readback(item: MissionItem) -> MissionItem:
+    """``item`` as ArduCopter returns it on download after storing it (AP_Mission).
+
+    A location's altitude is stored as ``z * 100.0f`` truncated to whole centimetres and
+    returned as ``alt * 0.01f``; a NAV_WAYPOINT keeps only its hold time (param1, a uint16
+    of whole seconds) and returns 0 for param2-4 (Copter stores no acceptance radius, pass
+    radius or yaw). Everything else comes back as sent.
+    """
+    sent = as_sent(item)
+    if int(item.command) not in _STORED_LOCATION:
+        return sent
+    centimetres = np.trunc(np.float32(item.z) * np.float32(100.0))
+    stored = replace(sent, z=float(np.float32(centimetres) * np.float32(0.01)))
+    if int(item.command) == MavCmd.NAV_WAYPOINT:
+        hold = float(math.trunc(item.param1)) if 0 <= item.param1 < 65536 else item.param1
+        stored = replace(stored, param1=hold, param2=0.0, param3=0.0, param4=0.0)
+    return stored
+
+
 def item_difference(expected: MissionItem, actual: MissionItem) -> str | None:
     """The first field in which ``actual`` differs from ``expected`` as sent, or None.
 
@@ -182,13 +210,13 @@ def item_difference(expected: MissionItem, actual: MissionItem) -> str | None:
     is not compared.
     """
     sent = as_sent(expected)
-    for name in ("command", "frame", "autocontinue", "mission_type", "x", "y"):
+    for name in COMPARED_FIELDS[:6]:
         want, got = int(getattr(sent, name)), int(getattr(actual, name))
         if name == "frame":
             want, got = EQUIVALENT_FRAME.get(want, want), EQUIVALENT_FRAME.get(got, got)
         if want != got:
             return name
-    for name in ("param1", "param2", "param3", "param4", "z"):
+    for name in COMPARED_FIELDS[6:]:
         value, back = getattr(sent, name), float32(getattr(actual, name))
         if not (value == back or (math.isnan(value) and math.isnan(back))):
             return name

@@ -9,12 +9,16 @@ enough to check timing and geometry of multi-drone missions.
   offset, to imitate vehicles whose clocks disagree, design.md section 9).
 - **Space.** Positions are local ENU metres about a fixed origin (the configured start
   position); geodetic <-> ENU goes through pymap3d.
-- **Commands.** NAV_TAKEOFF climbs vertically to the item altitude. NAV_WAYPOINT flies the
+- **Commands.** Altitudes are flown as ArduPilot stores them, in whole centimetres
+  (:func:`~missions.geodesy.ardupilot_altitude`; a download still returns the items as
+  uploaded). NAV_TAKEOFF climbs vertically to the item altitude. NAV_WAYPOINT flies the
   straight 3-D line to the item at the current speed, with the along-track speed changing at
   most ``max_accel_mps2``; param1 is the hold time [s] at the waypoint. DO_CHANGE_SPEED
   sets the speed (param2 [m/s]; param1 0/1 horizontal, 2 climb, 3 descent) from the next
-  leg on: do-commands between two nav items take effect when the leg to the second one
-  starts, as ArduPilot's AP_Mission runs them. NAV_DELAY waits param1 seconds, or with
+  leg on (do-commands between two nav items take effect when the leg to the second one
+  starts, as ArduPilot's AP_Mission runs them); a horizontal speed below
+  ``min_ground_speed_mps`` is ignored, as ArduCopter's AC_WPNav does (WPNAV_WP_SPEED_MIN,
+  20 cm/s up to Copter 4.5). NAV_DELAY waits param1 seconds, or with
   param1 = -1 until the UTC time of day param2:param3:param4 (hour:minute:second, -1 to
   ignore the hour or minute; ArduPilot's AP_RTC rule: the next such time, so a time just
   past waits a day). The specification has a 1 s resolution (no fraction of a second can be
@@ -41,6 +45,7 @@ import numpy as np
 import pymap3d
 
 from flycrane.errors import FieldProblem, InputError
+from missions.geodesy import ardupilot_altitude
 from missions.items import MavCmd, MissionItem
 
 #: The commands the mock flies; anything else is refused at upload (MAV_MISSION_UNSUPPORTED).
@@ -114,6 +119,7 @@ class Dynamics:
     climb_speed_mps: float = 2.5
     descent_speed_mps: float = 1.5
     land_speed_mps: float = 0.5
+    min_ground_speed_mps: float = 0.2  #: smaller DO_CHANGE_SPEED ground speeds are ignored
 
     def __post_init__(self) -> None:
         _positive("Dynamics", **{k: getattr(self, k) for k in self.__dataclass_fields__})
@@ -320,7 +326,8 @@ class KinematicFlight:
 
     def enu_from_item(self, item: MissionItem, home_alt_m: float) -> np.ndarray:
         """ENU [m] of a location item (x = y = 0 keeps the current horizontal position)."""
-        alt = item.z + home_alt_m if int(item.frame) in RELATIVE_ALT_FRAMES else item.z
+        z = float(ardupilot_altitude(item.z))  # whole centimetres, as AP_Mission stores them
+        alt = z + home_alt_m if int(item.frame) in RELATIVE_ALT_FRAMES else z
         if item.x == 0 and item.y == 0:
             e, n = self.position[0], self.position[1]
             u = alt - self.origin.alt_m
@@ -386,7 +393,7 @@ class KinematicFlight:
             self._climb = item.param2
         elif int(item.param1) == 3:
             self._descent = item.param2
-        else:
+        elif item.param2 >= self.dynamics.min_ground_speed_mps:
             self._cruise = item.param2
 
     @staticmethod

@@ -11,8 +11,10 @@ reads back identical is on board, whatever happened to the ack.
 Seq 0: ArduPilot keeps seq 0 for its home and reads it back as the current home position
 (frame GLOBAL, altitude AMSL) whatever was uploaded there, and overwrites it again at
 arming. :attr:`Verification.ARDUPILOT` therefore checks that seq 0 exists and compares every
-other item; the home the vehicle reported is returned in :class:`UploadReport` so the caller
-can check it against the mission's origin. :attr:`Verification.ALL_ITEMS` compares seq 0 as
+other item, each as sent or as ArduCopter stores it (altitudes in whole centimetres,
+NAV_WAYPOINT without acceptance radius: :func:`~.messages.ardupilot_readback`); the home the
+vehicle reported is returned in :class:`UploadReport` so the caller can check it against the
+mission's origin. :attr:`Verification.ALL_ITEMS` compares seq 0 as
 well (vehicles that store it verbatim, e.g. PX4 or MAVSDK's MissionRawServer).
 """
 
@@ -30,7 +32,7 @@ from missions.mavlink.errors import (
     MavlinkError,
     MissionVerificationError,
 )
-from missions.mavlink.messages import item_difference
+from missions.mavlink.messages import COMPARED_FIELDS, ardupilot_readback, item_difference
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.transfer import clear_mission, download_mission, upload_mission
 from missions.mavlink.transport import VehicleLink
@@ -42,7 +44,7 @@ class Verification(enum.Enum):
     """How an uploaded mission is checked by reading it back (module docstring)."""
 
     NONE = "none"  #: trust the vehicle's ACCEPTED
-    ARDUPILOT = "ardupilot"  #: every item but seq 0 (the vehicle's home)
+    ARDUPILOT = "ardupilot"  #: every item but seq 0 (the vehicle's home), as ArduCopter stores it
     ALL_ITEMS = "all_items"  #: every item
 
 
@@ -79,6 +81,14 @@ def verify_mission(
     first = 1 if verification is Verification.ARDUPILOT else 0
     for want, got in zip(expected[first:], actual[first:], strict=True):
         field = item_difference(want, got)
+        if field is not None and verification is Verification.ARDUPILOT:
+            stored = ardupilot_readback(want)
+            other = item_difference(stored, got)
+            if other is None:
+                continue
+            # name the difference from the closer of the two readings
+            if COMPARED_FIELDS.index(other) > COMPARED_FIELDS.index(field):
+                want, field = stored, other
         if field is not None:
             raise MissionVerificationError(
                 vehicle, want.seq, field, getattr(want, field), getattr(got, field)

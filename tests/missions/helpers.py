@@ -30,6 +30,23 @@ def approximate_geodetic(enu, origin: GeodeticOrigin):
     return lat, lon
 
 
+def encoded_leg_vectors(mission, origin: GeodeticOrigin):
+    """ENU displacements (L, 3) of the timed legs as an ArduPilot copter stores them:
+    coordinates of 1e-7 degree, altitudes truncated to whole centimetres (AP_Mission keeps
+    ``int32(z * 100)``); inverse of :func:`approximate_geodetic`."""
+    items = [mission.items[2], *nav_waypoints(mission)]
+    lat = np.array([i.x for i in items]) * 1e-7
+    lon = np.array([i.y for i in items]) * 1e-7
+    z = np.trunc(np.array([i.z for i in items]) * 100.0) / 100.0
+    lat0 = np.radians(origin.latitude)
+    w = 1 - WGS84_E2 * np.sin(lat0) ** 2
+    meridian = WGS84_A * (1 - WGS84_E2) / w**1.5
+    normal = WGS84_A / np.sqrt(w)
+    north = np.radians(lat - origin.latitude) * (meridian + origin.altitude)
+    east = np.radians(lon - origin.longitude) * (normal + origin.altitude) * np.cos(lat0)
+    return np.diff(np.stack([east, north, z], axis=1), axis=0)
+
+
 def nav_waypoints(mission):
     """The timed NAV_WAYPOINTs: after home (seq 0), takeoff (1) and the start (2)."""
     return [it for it in mission.items[3:] if it.command == MavCmd.NAV_WAYPOINT]

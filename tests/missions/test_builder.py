@@ -21,6 +21,7 @@ from missions.items import MavCmd, MavFrame
 from missions.options import MissionOptions
 from tests.missions.helpers import (
     approximate_geodetic,
+    encoded_leg_vectors,
     flown_leg_durations,
     hand_made_plan,
     nav_waypoints,
@@ -98,19 +99,27 @@ def test_amsl_altitudes_add_the_origin_altitude(curved_plan):
 def test_speed_changes_make_every_leg_last_its_planned_duration(curved_plan, which):
     plan = curved_plan if which == "curved" else NEAR_LEVEL
     planned = np.diff(plan.time)
-    for j, mission in enumerate(build_missions(plan, MissionOptions())):
-        flown = flown_leg_durations(mission, np.diff(plan.drones[:, j], axis=0))
+    options = MissionOptions()
+    for j, mission in enumerate(build_missions(plan, options)):
+        # The autopilot flies between the waypoints as encoded (rounded coordinates,
+        # centimetre altitudes), so the legs are measured there.
+        flown = flown_leg_durations(mission, encoded_leg_vectors(mission, options.origin))
         # Within 0.1 %: a 10 s leg 10 ms early or late (speed items are not repeated for
         # smaller changes).
         np.testing.assert_allclose(flown, planned, rtol=1e-3, err_msg=f"drone {j + 1}")
 
 
 def test_a_change_of_direction_alone_does_not_repeat_speed_items():
-    # Same speeds on both legs, east then north: one ground speed item, no vertical ones.
+    # Same speeds on both legs, east then north: ground speed items only, and a second one
+    # only where rounding to 1e-7 degree makes the encoded legs differ by more than 0.1 %.
     plan = hand_made_plan([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [4.0, 4.0])
-    for mission in build_missions(plan, MissionOptions()):
+    options = MissionOptions()
+    for mission in build_missions(plan, options):
         speeds = [it for it in mission.items if it.command == MavCmd.DO_CHANGE_SPEED]
-        assert [(it.param1, it.param2) for it in speeds] == [(1.0, pytest.approx(0.25))]
+        lengths = np.linalg.norm(encoded_leg_vectors(mission, options.origin), axis=1)
+        differ = abs(lengths[1] - lengths[0]) > 1e-3 * lengths[1]
+        assert [it.param1 for it in speeds] == [1.0] * (1 + differ)
+        assert speeds[0].param2 == pytest.approx(lengths[0] / 4.0, rel=1e-5)
 
 
 @pytest.mark.parametrize(

@@ -22,7 +22,7 @@ from missions.builder import build_missions
 from missions.formats import dumps, mission_from_json, mission_json, qgc_plan, waypoints_text
 from missions.items import MavCmd, MavFrame
 from missions.options import MissionOptions
-from tests.missions.helpers import approximate_geodetic, hand_made_plan
+from tests.missions.helpers import WGS84_A, WGS84_E2, approximate_geodetic, hand_made_plan
 
 GOLDEN = Path(__file__).parent / "golden"
 UPDATE = os.environ.get("FLYCRANE_UPDATE_GOLDEN") == "1"
@@ -35,9 +35,9 @@ TINY_ITEMS = [
     (16, 0, 0.0, 0.0),  # home, AMSL
     (22, 3, 0.0, 0.0),  # takeoff to the start altitude, relative
     (16, 3, 5.0, 0.2),  # the start: hold 5 s, acceptance radius 0.2 m
-    (178, 2, 1.0, 0.25),  # ground speed: 1 m in 4 s
+    (178, 2, 1.0, 0.25),  # ground speed: 1 m in 4 s (the encoded metre: see below)
     (16, 3, 0.0, 0.2),
-    (178, 2, 2.0, 0.2),  # climb speed: 1 m in 5 s
+    (178, 2, 2.0, 0.2),  # climb speed: 1 m in 5 s (the encoded metre: see below)
     (16, 3, 0.0, 0.2),
     (17, 3, 0.0, 0.0),  # loiter at the end
 ]
@@ -75,7 +75,24 @@ def test_golden_waypoints_file_says_what_the_plan_says(drone):
     assert all(len(row) == 12 for row in rows)
     assert [int(r[0]) for r in rows] == list(range(8))
     assert [int(r[1]) for r in rows] == [1] + [0] * 7  # home is "current"
-    assert [(int(r[3]), int(r[2]), float(r[4]), float(r[5])) for r in rows] == TINY_ITEMS
+    # Speeds are those of the legs as encoded (coordinates rounded to 1e-7 degree, about
+    # 1 cm): within 1 % of the planned 0.25 and 0.2 m/s, exactly the encoded metre / time.
+    assert [(int(r[3]), int(r[2]), float(r[4])) for r in rows] == [t[:3] for t in TINY_ITEMS]
+    for row, expected in zip(rows, TINY_ITEMS, strict=True):
+        assert float(row[5]) == pytest.approx(expected[3], rel=1e-2 if expected[0] == 178 else 0)
+    east_row, up_row = rows[4], rows[6]
+    lat0 = np.radians(OPTIONS.origin.latitude)
+    w = 1 - WGS84_E2 * np.sin(lat0) ** 2
+    meridian, normal = WGS84_A * (1 - WGS84_E2) / w**1.5, WGS84_A / np.sqrt(w)
+    height = OPTIONS.origin.altitude
+    north_m, east_m = np.radians(
+        [float(east_row[8]) - float(rows[2][8]), float(east_row[9]) - float(rows[2][9])]
+    ) * [meridian + height, (normal + height) * np.cos(lat0)]
+    assert float(rows[3][5]) == pytest.approx(np.hypot(north_m, east_m) / 4.0, rel=1e-5)
+    assert float(rows[5][5]) == pytest.approx(
+        (np.trunc(float(up_row[10]) * 100) - np.trunc(float(east_row[10]) * 100)) / 100 / 5.0,
+        rel=1e-6,
+    )
     assert all(float(r[6]) == (-1.0 if int(r[3]) == 178 else 0.0) for r in rows)
     assert all(int(r[11]) == 1 for r in rows)
     start, east, up = TINY.drones[:, drone - 1]
@@ -106,7 +123,12 @@ def test_golden_plan_file_says_what_the_plan_says():
         pytest.approx(488.0, abs=1e-5),
     ]
     items = mission["items"]
-    assert [(it["command"], it["frame"], *it["params"][:2]) for it in items] == TINY_ITEMS[1:]
+    assert [(it["command"], it["frame"], it["params"][0]) for it in items] == [
+        t[:3] for t in TINY_ITEMS[1:]
+    ]
+    for it, expected in zip(items, TINY_ITEMS[1:], strict=True):  # speeds: encoded legs
+        tolerance = 1e-2 if it["command"] == 178 else 0
+        assert it["params"][1] == pytest.approx(expected[3], rel=tolerance)
     assert [it["doJumpId"] for it in items] == list(range(1, 8))
     for item in items:
         assert item["type"] == "SimpleItem" and item["autoContinue"] is True

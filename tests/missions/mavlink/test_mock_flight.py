@@ -122,3 +122,38 @@ def test_loiter_unlimited_holds_and_never_completes():
         ("current", 1), ("reached", 1), ("current", 2)]
     assert p[-1] == pytest.approx([5.0, 0.0, 3.0], abs=0.01)  # 1e-7 degree steps
     assert speed[-1] == 0.0
+
+
+def test_ground_speeds_below_the_minimum_are_ignored_but_not_vertical_ones():
+    """ArduCopter's AC_WPNav::set_speed_NE ignores ground speeds below WPNAV_WP_SPEED_MIN
+    (20 cm/s up to 4.5); climb and descent speeds have no such floor."""
+    def legs(ground: float, climb: float):
+        return (
+            home_item(),
+            item(1, MavCmd.NAV_TAKEOFF, z=2.0),
+            item(2, MavCmd.DO_CHANGE_SPEED, frame=MavFrame.MISSION, p1=1, p2=ground, p3=-1),
+            item(3, MavCmd.NAV_WAYPOINT, en=(0.0, 2.0), z=2.0, p1=1.0),  # level, then stop
+            item(4, MavCmd.DO_CHANGE_SPEED, frame=MavFrame.MISSION, p1=2, p2=climb, p3=-1),
+            item(5, MavCmd.NAV_WAYPOINT, en=(0.0, 2.0), z=3.0),  # straight up
+        )
+
+    _, _, _, events = fly(Imperfections(), legs(ground=0.15, climb=0.1))
+    level = reached_at(events, 3) - reached_at(events, 1)
+    # 0.15 m/s ignored: 2 m at the default 5 m/s with 2.5 m/s^2 ramps (1.79 s, no cruise),
+    # then the 1 s hold
+    assert level == pytest.approx(2 * np.sqrt(2.0 / 2.5) + 1.0, abs=0.02)
+    # the 0.1 m/s climb is obeyed: 1 m in 10 s plus 0.04 s of ramps
+    assert reached_at(events, 5) - reached_at(events, 3) == pytest.approx(10.04, abs=0.02)
+    _, _, _, events = fly(Imperfections(), legs(ground=0.25, climb=0.1))
+    # 0.25 m/s obeyed: 0.1 s ramps, 1.975 m at 0.25 m/s, the hold
+    assert reached_at(events, 3) - reached_at(events, 1) == pytest.approx(9.1, abs=0.02)
+
+
+def test_altitudes_are_flown_in_the_centimetres_ardupilot_keeps():
+    """AP_Mission stores z * 100.0f truncated to an integer of centimetres."""
+    items = (home_item(), item(1, MavCmd.NAV_TAKEOFF, z=2.026),
+             item(2, MavCmd.NAV_WAYPOINT, en=(0.0, 1.0), z=1.999))  # fmt: skip
+    _, p, _, _ = fly(Imperfections(), items)
+    # the top of the takeoff, sampled within 0.13 mm of it (2.5 m/s^2 for 0.01 s from rest)
+    assert p[:, 2].max() == pytest.approx(2.02, abs=5e-4)
+    assert p[-1, 2] == pytest.approx(1.99, abs=1e-6)  # ENU "up" bends 0.1 um over 1 m

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import pytest
 
 from missions.items import MavCmd, MavFrame, MissionItem
 from missions.mavlink.errors import FleetError, MissionTransferError, MissionVerificationError
 from missions.mavlink.fleet import Fleet, upload_to_vehicles
-from missions.mavlink.messages import as_sent
+from missions.mavlink.messages import ardupilot_readback, as_sent, float32
 from missions.mavlink.mock_autopilot import MockConfig
 from missions.mavlink.mock_flight import SimClock
 from missions.mavlink.transfer import download_mission
@@ -125,3 +126,18 @@ def test_verification_names_the_first_difference():
         verify_mission("v", sent, back[:-1], Verification.ARDUPILOT)
     assert (error.value.seq, error.value.field, error.value.expected, error.value.actual) == (
         None, "count", 5, 4)
+
+
+def test_ardupilot_verification_accepts_what_arducopter_stores():
+    """ArduCopter reads altitudes back in whole centimetres and NAV_WAYPOINT without its
+    acceptance radius (AP_Mission): a faithful upload, not a failed one."""
+    sent = waypoint_mission(1, 3).items  # altitudes 5.123 m apart, param2 = 1.5
+    back = [ardupilot_readback(i) for i in sent]
+    assert float32(back[3].z) != float32(sent[3].z) and back[3].param2 == 0.0
+    verify_mission("v", sent, back, Verification.ARDUPILOT)
+    with pytest.raises(MissionVerificationError):
+        verify_mission("v", sent, back, Verification.ALL_ITEMS)
+    back[3] = replace(back[3], z=back[3].z + 0.01)  # a centimetre off: a different mission
+    with pytest.raises(MissionVerificationError) as error:
+        verify_mission("v", sent, back, Verification.ARDUPILOT)
+    assert (error.value.seq, error.value.field) == (3, "z")

@@ -1,0 +1,421 @@
+"""Replay: three mock ArduCopters fly the Rescue task's missions over MAVLink, and the load
+they carry stays feasible, collision-free and on the planned path.
+
+The task is planned and exported by :func:`run_task` (what ``flycrane plan`` and the
+service run); the three ``drone{k}.mission.json`` files are uploaded with :class:`Fleet` to
+three :class:`MockAutopilot` homed on the ground below each drone's start (seq 0), armed
+and started by one MISSION_START. Everything the checks use comes back over MAVLink:
+GLOBAL_POSITION_INT (position, velocity, ``time_boot_ms``) and MISSION_ITEM_REACHED. The
+platform is rebuilt from the three drones' positions alone (direct kinematics) and judged
+by the task's own validity checker, so the evidence does not go through the mission
+builder's geometry.
+
+Simulated time: the mocks share one :class:`SimClock` at :data:`SPEEDUP`, so a ~33 s flight
+(takeoff, 5 s hold, 26 s plan) takes ~3 s. ``time_boot_ms`` counts simulated milliseconds
+from the shared epoch, so the three streams compare directly. A speed-up also multiplies
+the wall-clock latency of the MISSION_START (a 15 ms scheduling hiccup on a busy core is
+0.15 s simulated, more than this plan tolerates); a real link delivers it within a
+millisecond. So the clock is held still while the start goes out (:class:`HoldableClock`):
+the three vehicles start at one simulated instant, and start offsets happen only where a
+test imposes them. The slow soak variant flies at x1 without the hold.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from numpy.typing import NDArray
+from scipy.integrate import cumulative_trapezoid
+from scipy.signal import savgol_filter
+
+from flycrane.direct_kinematics import DirectKinematicsResult, configuration_from_drone_positions
+from flycrane.kinematics import drone_positions_from_configuration
+from flycrane.planning.planners import PlannerOptions
+from missions.formats import mission_from_json
+from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
+from missions.items import DroneMission, MavCmd
+from missions.mavlink import Fleet, Imperfections, MockAutopilot, MockConfig, RetryPolicy
+from missions.mavlink.mock_flight import Geodetic, SimClock
+from missions.mavlink.telemetry import VehicleTelemetry
+from missions.pipeline import run_task
+from missions.task import ResolvedTask, TaskSpec, resolve_task
+from missions.tracks import Track
+from missions.waypoints import planned_configurations
+
+from .mavlink.conftest import free_udp_port, no_leaked_threads  # noqa: F401 (autouse fixture)
+
+SPEEDUP = 10.0
+#: GLOBAL_POSITION_INT at every step of the mocks (sim_step_s = 0.02 s): the most samples
+#: for the noise test, and one per step times MISSION_ITEM_REACHED to a step.
+STREAM_HZ = 50.0
+STEP_S = 1.0 / STREAM_HZ
+#: Start synchronisation seen in the telemetry [s]: the mocks' step grids differ in phase
+#: (less than a step), and an event is reported at the end of the step it happened in.
+SYNC_S = 2 * STEP_S
+POLICY = RetryPolicy(request_timeout_s=0.25, retries=4, deadline_s=20.0,
+                     no_space_backoff_s=0.1, no_space_retry_s=5.0, heartbeat_timeout_s=3.0,
+                     gcs_heartbeat_interval_s=0.1)  # fmt: skip
+
+#: Waypoint arrival times of the three drones agree within this [s] (and each is within it
+#: of the plan). The mock ramps speed changes at 2.5 m/s^2 instead of switching them, which
+#: moves a drone's arrival by (dv^2 / 2a) / v per speed change: about 0.1 s in total on
+#: the lift, 0.35 s into the slow last leg (0.30 -> 0.04 m/s).
+ARRIVAL_SPREAD_S = 0.5
+#: Reconstructed platform point P against the planned P at the same progress [m]. Budget:
+#: the straight legs themselves, 0.05 (MissionOptions.max_platform_deviation, checked when
+#: the waypoints were chosen); the mock's speed ramps shift a drone along its track by at
+#: most dv^2 / 2a = 0.5^2 / (2 * 2.5) = 0.05 relative to the others (progress matching
+#: removes shifts common to all three); MAVLink's 1e-7 degree coordinates, 0.011; progress
+#: matched to the nearest dense sample of the plan (0.02 apart), 0.01. Sum 0.12.
+PLATFORM_TOLERANCE_M = 0.15
+#: Noise handling (the imperfect flights): positions fused with the noise-free reported
+#: velocity, the position offset fitted as a local line over this window [s]
+#: (:func:`fused_positions`).
+FUSION_WINDOW_S = 4.0
+
+
+# --- a clock the test can hold still --------------------------------------------------
+
+
+class _Hold:
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.at: float | None = None  # simulated time while held [s]
+        self.total = 0.0  # wall time spent held so far [s]
+
+
+@dataclass(frozen=True)
+class HoldableClock(SimClock):
+    """A :class:`SimClock` that stands still inside :meth:`held` and then runs on from
+    where it stopped: messages the mocks handle meanwhile all happen at one instant."""
+
+    _hold: _Hold = field(default_factory=_Hold, repr=False, compare=False)
+
+    def now(self) -> float:
+        with self._hold.lock:
+            if self._hold.at is not None:
+                return self._hold.at
+            return (time.monotonic() - self.epoch_monotonic - self._hold.total) * self.speedup
+
+    @contextmanager
+    def held(self) -> Iterator[float]:
+        with self._hold.lock:
+            since = time.monotonic()
+            self._hold.at = (since - self.epoch_monotonic - self._hold.total) * self.speedup
+        try:
+            yield self._hold.at
+        finally:
+            with self._hold.lock:
+                self._hold.total += time.monotonic() - since
+                self._hold.at = None
+
+
+# --- the exported task ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Exported:
+    """What run_task wrote, read back as a user of the files would."""
+
+    resolved: ResolvedTask
+    missions: tuple[DroneMission, ...]
+    track: Track  #: the dense planned track (time law, configurations, drone positions)
+    waypoint_time: NDArray[np.float64]  #: (K,) planned times of the timed waypoints [s]
+    tolerance: dict  #: timing_tolerance(...) as tracks.json reports it
+
+
+@pytest.fixture(scope="module")
+def rescue(tmp_path_factory: pytest.TempPathFactory) -> Exported:
+    task = TaskSpec(planner=PlannerOptions(seed=0, time_budget=60))
+    resolved = resolve_task(task)
+    out = tmp_path_factory.mktemp("rescue")
+    outcome = run_task(task, out, resolved=resolved)
+    assert outcome.status == "done", outcome.reason
+    missions = tuple(
+        mission_from_json(json.loads((out / f"drone{k}.mission.json").read_text()))
+        for k in (1, 2, 3)
+    )
+    tracks = json.loads((out / "tracks.json").read_text())
+    q = np.array(tracks["dense"]["configurations"])
+    track = Track(np.array(tracks["dense"]["time"]), q,
+                  drone_positions_from_configuration(resolved.problem.system, q))  # fmt: skip
+    assert tracks["timing_tolerance"] == outcome.mission["timing_tolerance"]
+    return Exported(resolved, missions, track, np.array(tracks["time"]),
+                    tracks["timing_tolerance"])  # fmt: skip
+
+
+def home_below_start(mission: DroneMission) -> Geodetic:
+    """Seq 0: the ground point below the drone's start, altitude AMSL (frame GLOBAL_INT)."""
+    home = mission.items[0]
+    return Geodetic(home.x * DEGREE_UNIT, home.y * DEGREE_UNIT, home.z)
+
+
+def timed_waypoints(mission: DroneMission) -> tuple[int, list[int]]:
+    """Seq of the start waypoint (the hold after takeoff) and of the timed waypoints."""
+    waypoints = [i.seq for i in mission.items if i.command == MavCmd.NAV_WAYPOINT and i.seq]
+    return waypoints[0], waypoints[1:]
+
+
+# --- flying ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Flight:
+    telemetry: tuple[VehicleTelemetry, ...]  #: drone 1..3
+    wall_s: float  #: from MISSION_START to the last waypoint reached, wall clock [s]
+
+
+def fly(
+    exported: Exported,
+    imperfections: Sequence[Imperfections],
+    speedup: float = SPEEDUP,
+    hold_start: bool = True,
+) -> Flight:
+    """Three mocks on loopback, one shared clock: upload, stream, arm, one MISSION_START,
+    record until every drone reports its last timed waypoint reached."""
+    clock = HoldableClock(speedup=speedup)
+    mocks: list[MockAutopilot] = []
+    addresses, names = [], []
+    try:
+        for k, (mission, imperfect) in enumerate(zip(exported.missions, imperfections,
+                                                     strict=True)):  # fmt: skip
+            port = free_udp_port()
+            config = MockConfig(system_id=k + 1, home=home_below_start(mission),
+                                imperfections=imperfect)  # fmt: skip
+            mocks.append(MockAutopilot(f"udpin:127.0.0.1:{port}", config, clock).start())
+            addresses.append(f"udpout:127.0.0.1:{port}")
+            names.append(f"drone{k + 1}")
+        last = {name: timed_waypoints(m)[1][-1]
+                for name, m in zip(names, exported.missions, strict=True)}  # fmt: skip
+        with Fleet.connect(addresses, POLICY, names) as fleet:
+            fleet.upload(exported.missions)
+            with fleet.recorder() as recorder:
+                fleet.request_position_streams(rate_hz=STREAM_HZ)
+                fleet.arm()
+                started = time.monotonic()
+                if hold_start:
+                    with clock.held():
+                        fleet.start()
+                else:
+                    fleet.start()
+                # takeoff and hold take ~6.5 s, the flight the plan's duration plus the
+                # mock's ramps and slow-downs: 1.5 x that plus 10 s is never reached
+                simulated = 1.5 * float(exported.waypoint_time[-1]) + 10.0
+                deadline = started + simulated / speedup + 5.0
+                while not all(finished(vehicle, last[name])
+                              for name, vehicle in recorder.snapshot().items()):  # fmt: skip
+                    assert time.monotonic() < deadline, "the drones did not finish in time"
+                    time.sleep(0.05)
+                wall_s = time.monotonic() - started
+                telemetry = recorder.snapshot()
+    finally:
+        for mock in mocks:
+            mock.stop()
+    return Flight(tuple(telemetry[name] for name in names), wall_s)
+
+
+def finished(vehicle: VehicleTelemetry, seq: int) -> bool:
+    """Item ``seq`` reached, and a position received after it (which times the event)."""
+    reached = [e.received_s for e in vehicle.reached if e.seq == seq]
+    return bool(reached) and vehicle.positions[-1].received_s > reached[0]
+
+
+# --- what the telemetry says ------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RecordedTrack:
+    """One drone's recorded track in the task's ENU frame, simulated time."""
+
+    time: NDArray[np.float64]  #: (N,) [s]
+    enu: NDArray[np.float64]  #: (N, 3) [m]
+    velocity: NDArray[np.float64]  #: (N, 3) ENU [m/s]
+    reached: dict[int, float]  #: seq -> simulated time of its MISSION_ITEM_REACHED [s]
+
+
+def recorded_track(vehicle: VehicleTelemetry, exported: Exported) -> RecordedTrack:
+    origin = exported.resolved.task.mission.origin
+    positions = vehicle.positions
+    t = np.array([p.time_boot_ms for p in positions]) / 1000.0
+    enu = enu_from_geodetic(
+        np.array([p.lat_e7 for p in positions]) * DEGREE_UNIT,
+        np.array([p.lon_e7 for p in positions]) * DEGREE_UNIT,
+        np.array([p.alt_mm for p in positions]) / 1000.0,  # AMSL, as the origin's altitude
+        origin,
+    )
+    north, east, down = np.array([p.velocity_ned_cms for p in positions]).T / 100.0
+    # MISSION_ITEM_REACHED has no timestamp. The mock sends a step's events before that
+    # step's GLOBAL_POSITION_INT, over one socket read by one thread, so the first position
+    # received after the event carries the event's step time (to one step, 0.02 s).
+    received = np.array([p.received_s for p in positions])
+    reached: dict[int, float] = {}
+    for event in vehicle.reached:
+        k = int(np.searchsorted(received, event.received_s, side="right"))
+        if k < len(t):
+            reached.setdefault(event.seq, float(t[k]))
+    return RecordedTrack(t, enu, np.column_stack([east, north, -down]), reached)
+
+
+def fused_positions(track: RecordedTrack) -> NDArray[np.float64]:
+    """Positions with the reported noise averaged out, keeping the motion.
+
+    The mock adds its noise to the reported position only; the reported velocity is the
+    state's (rounded to 1 cm/s). So the velocity, integrated, gives the motion, and the
+    noisy positions only the offset of that integral, which drifts slowly (velocity rounding:
+    at most 0.5 cm/s). The offset is fitted as a local line over FUSION_WINDOW_S: 200
+    samples of 5 cm noise leave about 0.4 cm (at most 2 cm, in a kinematic replay of this
+    flight with six noise seeds). Smoothing the positions alone over 0.5 to 1 s left
+    errors of 4 to 6 cm at the speed changes and, on some seeds, false collisions: the
+    bridge clears the roofs and the ground by 2.5 to 5 cm in this task.
+    """
+    integral = cumulative_trapezoid(track.velocity, track.time, axis=0, initial=0.0)
+    window = round(FUSION_WINDOW_S / STEP_S) | 1
+    offset = savgol_filter(track.enu - integral, window, polyorder=1, axis=0)
+    return integral + offset
+
+
+@dataclass(frozen=True)
+class Replay:
+    """The three drones on common times over the planned part of the flight."""
+
+    time: NDArray[np.float64]  #: (N,) simulated [s]
+    drones: NDArray[np.float64]  #: (N, 3, 3) ENU [m]
+    leave: NDArray[np.float64]  #: (3,) when each drone left its start waypoint [s]
+    arrivals: NDArray[np.float64]  #: (3, K - 1) when each reached each timed waypoint [s]
+
+
+def replay(exported: Exported, flight: Flight, fuse: bool = False) -> Replay:
+    """Align the drones on common times (linear interpolation; the mocks step on their own
+    grids) from the first drone leaving its start to the last reaching its last waypoint."""
+    tracks = [recorded_track(v, exported) for v in flight.telemetry]
+    leave, arrivals = [], []
+    for track, mission in zip(tracks, exported.missions, strict=True):
+        start, timed = timed_waypoints(mission)
+        assert len(timed) == len(exported.waypoint_time) - 1
+        leave.append(track.reached[start])  # a waypoint with a hold is reached after it
+        arrivals.append([track.reached[seq] for seq in timed])
+    t = np.arange(min(leave), max(a[-1] for a in arrivals) + STEP_S / 2, STEP_S)
+    drones = np.stack([
+        np.column_stack([np.interp(t, track.time, p[:, axis]) for axis in range(3)])
+        for track in tracks
+        for p in [fused_positions(track) if fuse else track.enu]
+    ], axis=1)  # fmt: skip
+    return Replay(t, drones, np.array(leave), np.array(arrivals))
+
+
+def rebuild(exported: Exported, flown: Replay) -> DirectKinematicsResult:
+    """The platform configuration at every sample, from the drones' positions only; the
+    Newton iteration starts from the planned configuration at the same mission time."""
+    mission_time = np.clip(flown.time - flown.time[0], 0.0, exported.track.duration)
+    initial = planned_configurations(exported.track, mission_time)
+    return configuration_from_drone_positions(
+        exported.resolved.problem.system, flown.drones, initial=initial
+    )
+
+
+def deviation_at_same_progress(track: Track, drones: NDArray, q: NDArray) -> NDArray:
+    """|P_rebuilt - P_planned| [m] where the plan's progress is the dense sample whose three
+    drone positions are nearest the flown ones (so delays common to all drones and the
+    stretch of the whole track do not count; what differs between the drones does)."""
+    flown, planned = drones.reshape(len(drones), 9), track.drones.reshape(len(track.time), 9)
+    squared = (flown**2).sum(1)[:, None] + (planned**2).sum(1)[None] - 2.0 * flown @ planned.T
+    nearest = np.argmin(squared, axis=1)
+    return np.linalg.norm(q[:, :3] - track.q[nearest, :3], axis=1)
+
+
+def unsafe_report(exported: Exported, flown: Replay, q: NDArray, safe: NDArray) -> str:
+    bad = np.flatnonzero(~safe)
+    if not len(bad):
+        return "all safe"
+    validity = exported.resolved.problem.validity
+    first = bad[0]
+    when = flown.time[first] - flown.time[0]
+    return (f"{len(bad)} of {len(safe)} samples unsafe, first at {when:.2f} s of the plan: "
+            f"{validity.explain(q[first])}")  # fmt: skip
+
+
+# --- the tests --------------------------------------------------------------------------
+
+
+def check_ideal_flight(exported: Exported, flight: Flight) -> None:
+    flown = replay(exported, flight)
+    rebuilt = rebuild(exported, flown)
+    assert rebuilt.converged.all(), f"{(~rebuilt.converged).sum()} samples did not converge"
+    safe = exported.resolved.problem.validity.is_safe(rebuilt.q)
+    assert safe.all(), unsafe_report(exported, flown, rebuilt.q, safe)
+
+    # the three left their start together (one MISSION_START, clock held)...
+    assert np.ptp(flown.leave) <= SYNC_S
+    # ...and reach every waypoint together, and when the plan says
+    spread = np.ptp(flown.arrivals, axis=0)
+    assert spread.max() <= ARRIVAL_SPREAD_S, f"arrival spreads {np.round(spread, 3)}"
+    late = flown.arrivals - flown.leave[:, None] - exported.waypoint_time[None, 1:]
+    assert np.abs(late).max() <= ARRIVAL_SPREAD_S, f"arrivals - plan {np.round(late, 3)}"
+
+    deviation = deviation_at_same_progress(exported.track, flown.drones, rebuilt.q)
+    assert deviation.max() <= PLATFORM_TOLERANCE_M, f"P off the plan by {deviation.max():.3f} m"
+
+
+def test_ideal_flight_keeps_the_load_safe_and_on_the_plan(rescue: Exported):
+    flight = fly(rescue, [Imperfections()] * 3)
+    check_ideal_flight(rescue, flight)
+
+
+@pytest.mark.slow
+def test_ideal_flight_in_real_time_without_holding_the_clock(rescue: Exported):
+    """Soak: the same flight at x1 (35 s), started as a ground station would, unaided."""
+    flight = fly(rescue, [Imperfections()] * 3, speedup=1.0, hold_start=False)
+    check_ideal_flight(rescue, flight)
+
+
+def late_drones(case: str) -> set[int]:
+    """Drone indices (0-based) of the tolerance's worst case, "drones 1 and 3 late"."""
+    found = {int(d) - 1 for d in re.findall(r"\d+", case)}
+    assert found and found <= {0, 1, 2}, case
+    return found
+
+
+@pytest.mark.parametrize("factor", [1 / 3, 2.5], ids=["within-tolerance", "beyond-tolerance"])
+def test_imperfect_flight_is_safe_exactly_when_the_timing_tolerance_says(
+    rescue: Exported, factor: float
+):
+    """Start offsets on the tolerance's worst case, waypoint slow-downs and 5 cm noise.
+
+    ``timing_tolerance`` says in advance how large a start offset the mission survives
+    (the worst of the six cases of one or two drones late). Flown with a start offset below
+    it, no reconstructed sample may be unsafe; above it, unsafe samples must appear.
+    The same slow-down on all three (vehicles of one type and tuning): different ones
+    are a speed mismatch, the tolerance's other figure.
+    """
+    tolerance = rescue.tolerance["start_offset"]
+    late = late_drones(rescue.tolerance["start_offset_case"])
+    # A third of the tolerance and two and a half times it straddle it with room for the
+    # mock's own speed ramps, which use up about 0.03 s of it.
+    offset = factor * tolerance
+    imperfections = [
+        Imperfections(start_delay_s=offset if k in late else 0.0, waypoint_slowdown=0.3,
+                      position_noise_m=0.05, seed=k)
+        for k in range(3)
+    ]  # fmt: skip
+    flight = fly(rescue, imperfections)
+    flown = replay(rescue, flight, fuse=True)
+
+    imposed = flown.leave - flown.leave.min()
+    expected = np.array([offset if k in late else 0.0 for k in range(3)])
+    assert imposed == pytest.approx(expected, abs=SYNC_S)
+
+    rebuilt = rebuild(rescue, flown)
+    assert rebuilt.converged.all(), f"{(~rebuilt.converged).sum()} samples did not converge"
+    safe = rescue.resolved.problem.validity.is_safe(rebuilt.q)
+    report = unsafe_report(rescue, flown, rebuilt.q, safe)
+    assert bool(safe.all()) == (offset <= tolerance), (
+        f"offset {offset} s, tolerance {tolerance:.3f} s: {report}"
+    )
