@@ -29,10 +29,6 @@ from flycrane.system import SystemSpec, load_system, save_system
 DEFAULT_CONFIGURATION = (0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
 
 
-class CliError(FlyCraneError):
-    """A command-line usage problem (exit status 2)."""
-
-
 def _load_spec(path: str | None) -> SystemSpec:
     return load_system(path) if path else SystemSpec()
 
