@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import io
 import json
+import time
 import zipfile
 
+import numpy as np
 import pytest
 from mcap.reader import make_reader
 from pymavlink import mavwp
@@ -124,10 +126,48 @@ def test_cancel_stops_a_running_planner(tmp_path):
                                                   "planner": {"time_budget": 300}})
         task_id = accepted.json()["id"]
         wait_status(client, task_id, {"planning"})
+        progress = wait_progress(client, task_id)
+        assert progress["nodes"] >= 1 and progress["iterations"] >= 1
+        assert progress["distance_to_goal"] > 0 and progress["elapsed"] > 0
         assert client.delete(f"/v1/tasks/{task_id}").json()["cancel_requested"]
         task = wait_finished(client, task_id, timeout=30)
         assert task["status"] == "cancelled"
         assert task["result"]["planner_status"] == "cancelled"
+
+
+def wait_progress(client, task_id: str, timeout: float = 30.0) -> dict:
+    """The first progress report with planner figures (written every 0.5 s)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        progress = client.get(f"/v1/tasks/{task_id}").json()["progress"] or {}
+        if "nodes" in progress:
+            return progress
+        time.sleep(0.1)
+    raise AssertionError(f"no planner progress for {task_id}")
+
+
+def test_goal_as_a_platform_pose_gets_the_alphas_of_least_cost(tmp_path):
+    from flycrane.planning.problem import PlanningProblem
+
+    problem = PlanningProblem.named("rescue")
+    pose = {"position": [0.0, 0.0, 8.45], "orientation": [0.0, 0.0, 0.0]}
+    with running_service(tmp_path) as client:
+        accepted = client.post("/v1/tasks", json={**RESCUE, "goal": pose})
+        assert accepted.status_code == 202, accepted.text
+        task = wait_finished(client, accepted.json()["id"])
+        assert task["status"] == "done", task["error"]
+        path = client.get(f"/v1/tasks/{task['id']}/artifacts/path.json").json()
+        goal = path["configurations"][-1]
+    # Independent check: no alpha triple of a fine grid around the chosen one is both valid
+    # and cheaper (the chosen alphas are the least-cost valid ones up to the grid spacing).
+    alphas = np.array(goal[6:])
+    offsets = np.stack(np.meshgrid(*[np.linspace(-0.05, 0.05, 5)] * 3), -1).reshape(-1, 3)
+    around = np.tile(goal, (len(offsets), 1))
+    around[:, 6:] = alphas + offsets
+    valid = problem.validity.is_valid(around)
+    chosen = problem.validity.cost(np.array(goal)[None])[0]
+    assert np.all(problem.validity.cost(around[valid]) >= chosen * (1 - 0.05))
+    assert goal[:6] == pytest.approx([0.0, 0.0, 8.45, 0.0, 0.0, 0.0])
 
 
 def test_tasks_survive_a_restart(done, data_dir):

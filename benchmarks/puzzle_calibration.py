@@ -1,0 +1,90 @@
+"""Puzzle calibration runs: plan variants of the Puzzle passage over seeds.
+
+    python benchmarks/puzzle_calibration.py --runs 3 --budget 60 \\
+        --variant '{"slab": 0.1, "hole": [1.2, 0.5], "spacing": 0.8}' \\
+        --bounds '{"position_low": [-3.5, -1.5, 3.5], "position_high": [1.5, 1.5, 7.5]}'
+
+A variant changes the slab thickness, the hole (x, y), the spacing of the two bars and the
+long bar's length (design.md section 7 names these levers), and optionally the sampling
+bounds; the goal stays 0.4 m above the slab's top. For each planner it prints the solved
+runs and their times. BENCHMARKS.md ("Puzzle calibration") records what was run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import tomllib
+from concurrent.futures import ProcessPoolExecutor
+
+from flycrane.planning.planners import PlannerOptions, plan
+from flycrane.planning.problem import PlanningProblem
+from flycrane.scene import SCENES_DIR, SceneSpec, scene_from_dict
+
+SLAB_BOTTOM, SLAB_HALF_WIDTH = 4.0, 6.0
+
+
+def puzzle_variant(
+    slab: float = 0.2,
+    hole: tuple[float, float] = (1.1, 0.5),
+    spacing: float = 0.5,
+    long_bar: float = 1.3,
+    bounds: dict | None = None,
+) -> SceneSpec:
+    """The shipped Puzzle with another passage (and, optionally, other sampling bounds)."""
+    data = tomllib.loads((SCENES_DIR / "puzzle.toml").read_text(encoding="utf-8"))
+    a, b = hole
+    z = SLAB_BOTTOM + slab / 2
+    side = SLAB_HALF_WIDTH - a / 2
+    end = SLAB_HALF_WIDTH - b / 2
+    data["obstacles"] = [
+        {"kind": "box", "name": "slab west", "center": [-(SLAB_HALF_WIDTH + a / 2) / 2, 0, z],
+         "size": [side, 2 * SLAB_HALF_WIDTH, slab]},
+        {"kind": "box", "name": "slab east", "center": [(SLAB_HALF_WIDTH + a / 2) / 2, 0, z],
+         "size": [side, 2 * SLAB_HALF_WIDTH, slab]},
+        {"kind": "box", "name": "slab north", "center": [0, (SLAB_HALF_WIDTH + b / 2) / 2, z],
+         "size": [a, end, slab]},
+        {"kind": "box", "name": "slab south", "center": [0, -(SLAB_HALF_WIDTH + b / 2) / 2, z],
+         "size": [a, end, slab]},
+    ]
+    shapes = data["payload"]["shapes"]
+    shapes[1]["size"] = [long_bar, 0.08, 0.08]
+    shapes[2]["center"] = [0.0, 0.0, shapes[1]["center"][2] + spacing]
+    data["goal"] = [0.0, 0.0, SLAB_BOTTOM + slab + 0.4, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
+    if bounds:
+        data["bounds"].update(bounds)
+    return scene_from_dict(data, "puzzle variant")
+
+
+def run(variant: dict, bounds: dict | None, algorithm: str, seed: int, budget: float):
+    problem = PlanningProblem.from_scene(puzzle_variant(**variant, bounds=bounds))
+    options = PlannerOptions(algorithm=algorithm, seed=seed, time_budget=budget)
+    outcome = plan(problem.space, problem.validity, problem.start, problem.goal, options)
+    return algorithm, seed, outcome.result.status.value, outcome.result.statistics.time
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--variant", type=json.loads, default={})
+    parser.add_argument("--bounds", type=json.loads, default=None)
+    parser.add_argument("--planners", nargs="+", default=["trrt", "rrt"])
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--budget", type=float, default=60.0)
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    jobs = [(args.variant, args.bounds, p, s, args.budget)
+            for p in args.planners for s in range(args.runs)]  # fmt: skip
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(args.workers, mp_context=context) as pool:
+        results = list(pool.map(run, *zip(*jobs, strict=True)))
+    print(f"variant {args.variant} bounds {args.bounds}")
+    for planner in args.planners:
+        mine = [r for r in results if r[0] == planner]
+        solved = [r for r in mine if r[2] == "exact_solution"]
+        times = ", ".join(f"{r[3]:.1f}" for r in mine)
+        print(f"  {planner}: {len(solved)}/{len(mine)} solved; times [s]: {times}")
+
+
+if __name__ == "__main__":
+    main()
