@@ -30,6 +30,8 @@ def puzzle_variant(
     hole: tuple[float, float] = (1.1, 0.5),
     spacing: float = 0.5,
     long_bar: float = 1.3,
+    short_bar: float = 0.8,
+    start_z: float | None = None,
     bounds: dict | None = None,
 ) -> SceneSpec:
     """The shipped Puzzle with another passage (and, optionally, other sampling bounds)."""
@@ -48,18 +50,23 @@ def puzzle_variant(
         {"kind": "box", "name": "slab south", "center": [0, -(SLAB_HALF_WIDTH + b / 2) / 2, z],
          "size": [a, end, slab]},
     ]
-    shapes = data["payload"]["shapes"]
-    shapes[1]["size"] = [long_bar, 0.08, 0.08]
-    shapes[2]["center"] = [0.0, 0.0, shapes[1]["center"][2] + spacing]
+    # The upper bar stays where it is below P; a wider spacing lengthens the rod downwards.
+    rod, lower, upper = data["payload"]["shapes"]
+    lower_z = upper["center"][2] - spacing
+    rod["center"], rod["size"] = [0.0, 0.0, lower_z / 2], [0.06, 0.06, -lower_z]
+    lower["center"], lower["size"] = [0.0, 0.0, lower_z], [long_bar, 0.08, 0.08]
+    upper["size"] = [0.08, short_bar, 0.08]
+    if start_z is not None:
+        data["start"][2] = start_z
     data["goal"] = [0.0, 0.0, SLAB_BOTTOM + slab + 0.4, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
     if bounds:
         data["bounds"].update(bounds)
     return scene_from_dict(data, "puzzle variant")
 
 
-def run(variant: dict, bounds: dict | None, algorithm: str, seed: int, budget: float):
+def run(variant: dict, bounds: dict | None, algorithm: str, seed: int, budget: float, step):
     problem = PlanningProblem.from_scene(puzzle_variant(**variant, bounds=bounds))
-    options = PlannerOptions(algorithm=algorithm, seed=seed, time_budget=budget)
+    options = PlannerOptions(algorithm=algorithm, seed=seed, time_budget=budget, step=step)
     outcome = plan(problem.space, problem.validity, problem.start, problem.goal, options)
     return algorithm, seed, outcome.result.status.value, outcome.result.statistics.time
 
@@ -72,13 +79,16 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--budget", type=float, default=60.0)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--step", type=float, default=None, help="planner step (None: default)")
+    parser.add_argument("--first-seed", type=int, default=0)
     args = parser.parse_args()
-    jobs = [(args.variant, args.bounds, p, s, args.budget)
-            for p in args.planners for s in range(args.runs)]  # fmt: skip
+    seeds = range(args.first_seed, args.first_seed + args.runs)
+    jobs = [(args.variant, args.bounds, p, s, args.budget, args.step)
+            for p in args.planners for s in seeds]  # fmt: skip
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(args.workers, mp_context=context) as pool:
         results = list(pool.map(run, *zip(*jobs, strict=True)))
-    print(f"variant {args.variant} bounds {args.bounds}")
+    print(f"variant {args.variant} bounds {args.bounds} step {args.step}")
     for planner in args.planners:
         mine = [r for r in results if r[0] == planner]
         solved = [r for r in mine if r[2] == "exact_solution"]
