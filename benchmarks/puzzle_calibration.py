@@ -4,9 +4,10 @@
         --variant '{"slab": 0.1, "hole": [1.2, 0.5], "spacing": 0.8}' \\
         --bounds '{"position_low": [-3.5, -1.5, 3.5], "position_high": [1.5, 1.5, 7.5]}'
 
-A variant changes the slab thickness, the hole (x, y), the spacing of the two bars and the
-long bar's length (design.md section 7 names these levers), and optionally the sampling
-bounds; the goal stays 0.4 m above the slab's top. For each planner it prints the solved
+A variant changes the slab thickness, the hole (x, y), the spacing of the two bars (the
+upper bar stays 1.1 m below P; a wider spacing lengthens the rod downwards), the bars'
+lengths and the start height (design.md section 7 names these levers), and optionally the
+sampling bounds and the planner step; the goal stays 0.4 m above the slab's top. For each planner it prints the solved
 runs and their times. BENCHMARKS.md ("Puzzle calibration") records what was run.
 """
 
