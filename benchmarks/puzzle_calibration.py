@@ -7,8 +7,9 @@
 A variant changes the slab thickness, the hole (x, y), the spacing of the two bars (the
 upper bar stays 1.1 m below P; a wider spacing lengthens the rod downwards), the bars'
 lengths and the start height (design.md section 7 names these levers), and optionally the
-sampling bounds and the planner step; the goal stays 0.4 m above the slab's top. For each planner it prints the solved
-runs and their times. BENCHMARKS.md ("Puzzle calibration") records what was run.
+sampling bounds and the planner step; the goal stays 0.4 m above the slab's top. For each
+planner it prints the solved runs and their times. BENCHMARKS.md ("Puzzle calibration")
+records what was run.
 """
 
 from __future__ import annotations
