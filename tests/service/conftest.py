@@ -25,20 +25,17 @@ def running_service(data_dir: Path, **settings) -> Iterator[TestClient]:
 
 def wait_finished(client: TestClient, task_id: str, timeout: float = 120.0) -> dict:
     """Poll a task until it is done, failed or cancelled."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        task = client.get(f"/v1/tasks/{task_id}").json()
-        if task["status"] in FINISHED:
-            return task
-        time.sleep(0.3)
-    raise AssertionError(f"task {task_id} not finished after {timeout} s: {task}")
+    return wait_status(client, task_id, FINISHED, timeout, poll=0.3)
 
 
-def wait_status(client: TestClient, task_id: str, statuses: set[str], timeout: float = 60.0):
+def wait_status(
+    client: TestClient, task_id: str, statuses: set[str], timeout: float = 60.0, poll: float = 0.1
+) -> dict:
+    """Poll a task until its status is one of ``statuses``."""
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         task = client.get(f"/v1/tasks/{task_id}").json()
         if task["status"] in statuses:
             return task
-        time.sleep(0.1)
-    raise AssertionError(f"task {task_id} never reached {statuses}: {task}")
+        time.sleep(poll)
+    raise AssertionError(f"task {task_id} never reached {statuses} in {timeout} s: {task}")
