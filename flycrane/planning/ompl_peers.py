@@ -11,8 +11,8 @@ benchmark can compare against them.
 - Validity: OMPL calls our ``is_valid`` per state and our ``motion_is_valid`` per motion
   (a Python MotionValidator), so both planners check exactly the same motions. X counts
   motion checks, one per OMPL iteration that reaches one.
-- Goal: OMPL's goal region is a ball of radius ``step`` around the goal (as our planners
-  attempt the goal connection from within one step); a path ending inside the ball is
+- Goal: OMPL's goal region is a ball of radius ``goal_connection x step`` around the goal
+  (from where our planners attempt the goal connection); a path ending inside the ball is
   completed by the straight motion to the exact goal if that motion is valid, else the run
   counts as failed.
 - Objective (TRRT): ``MechanicalWorkOptimizationObjective`` with our cost as stateCost;
@@ -190,7 +190,7 @@ def _solve(job: _Job) -> tuple[PlannerStatus, NDArray[np.float64], int, int]:
     set_state(start, job.start)
     set_state(goal, job.goal)
     step = job.config.step or STEP_FRACTION * job.space.maximum_extent
-    problem.setStartAndGoalStates(start, goal, step)
+    problem.setStartAndGoalStates(start, goal, job.config.goal_connection * step)
     if job.algorithm == "trrt":
         problem.setOptimizationObjective(StaticsCost(info))
         planner = og.TRRT(info)

@@ -40,6 +40,9 @@ class PlannerOptions(BaseModel):
         None, gt=0, description="extension step delta [state-space distance]; None: 0.1 x extent"
     )
     goal_bias: float = Field(0.05, ge=0, le=1)
+    goal_connection: float = Field(
+        2.0, gt=0, le=100, description="try the goal from nodes within this many steps of it"
+    )
     init_temperature: float | None = Field(None, gt=0, description="None: 1e-6 c(q_start)")
     temperature_rate: float = Field(0.1, ge=0, le=1, description="T_rate")
     refinement_ratio: float = Field(0.1, ge=0, le=1, description="rho")
@@ -50,6 +53,7 @@ class PlannerOptions(BaseModel):
         config = TRRTConfig(
             step=self.step,
             goal_bias=self.goal_bias,
+            goal_connection=self.goal_connection,
             init_temperature=self.init_temperature,
             temperature_rate=self.temperature_rate,
             refinement_ratio=self.refinement_ratio,
@@ -57,7 +61,9 @@ class PlannerOptions(BaseModel):
         )
         if self.algorithm in COST_AWARE:
             return config
-        return TRRTConfig.rrt(step=self.step, goal_bias=self.goal_bias)
+        return TRRTConfig.rrt(
+            step=self.step, goal_bias=self.goal_bias, goal_connection=self.goal_connection
+        )
 
 
 def make_planner(space: ConfigurationSpace, validity: Validity, options: PlannerOptions):

@@ -75,6 +75,8 @@ def test_bad_options_name_the_field():
         TRRTConfig(goal_bias=1.5)
     with pytest.raises(InputError, match="step: must be > 0"):
         TRRTConfig(step=0.0)
+    with pytest.raises(InputError, match="goal_connection: must be > 0"):
+        TRRTConfig(goal_connection=-1.0)
 
 
 @pytest.mark.parametrize(
@@ -117,6 +119,20 @@ def test_path_is_valid_and_joins_start_to_goal(space, wall):
         assert wall.motion_is_valid(a, b)
     # the wall forces P and the drones through the window (z in [5, 7]) near x = 0
     assert result.path[:, 2].max() > 4.0
+
+
+@pytest.mark.parametrize("reach", [1.0, 2.0])
+def test_goal_is_tried_from_within_goal_connection_steps(space, wall, reach):
+    """The last edge is the goal-connection attempt (or a goal-biased extension): never
+    longer than ``goal_connection`` steps, and with 2 steps some runs use the longer reach."""
+    config = TRRTConfig.rrt(step=1.0, goal_connection=reach)
+    last_edges = []
+    for seed in range(6):
+        result = TRRT(space, wall, config).solve(START, GOAL, TerminationCondition(30.0), seed)
+        assert result.status.solved
+        last_edges.append(space.distance(result.path[-2], result.path[-1])[0])
+    assert max(last_edges) <= reach + 1e-9
+    assert (max(last_edges) > 1.0) == (reach > 1.0)
 
 
 def test_invalid_start_and_goal_are_statuses_with_reasons(space, wall):
