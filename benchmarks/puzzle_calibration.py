@@ -6,8 +6,9 @@
 
 A variant changes the slab thickness, the hole (x, y), the spacing of the two bars (the
 upper bar stays 1.1 m below P; a wider spacing lengthens the rod downwards), the bars'
-lengths and the start height (design.md section 7 names these levers), and optionally the
-sampling bounds and the planner step; the goal stays 0.4 m above the slab's top. For each
+lengths and the start height (design.md section 7 names these levers), the alphas of the
+start and goal hover (``hover_alpha``), and optionally the sampling bounds and the planner
+step; the goal stays 0.4 m above the slab's top. For each
 planner it prints the solved runs and their times. BENCHMARKS.md ("Puzzle calibration")
 records what was run.
 """
@@ -34,9 +35,11 @@ def puzzle_variant(
     long_bar: float = 1.3,
     short_bar: float = 0.8,
     start_z: float | None = None,
+    hover_alpha: float | None = None,
     bounds: dict | None = None,
 ) -> SceneSpec:
-    """The shipped Puzzle with another passage (and, optionally, other sampling bounds)."""
+    """The shipped Puzzle (its start, goal alphas and bounds) with another passage; the
+    defaults are design.md's first geometry, whose upper bar needs sigma's full range."""
     data = tomllib.loads((SCENES_DIR / "puzzle.toml").read_text(encoding="utf-8"))
     a, b = hole
     z = SLAB_BOTTOM + slab / 2
@@ -60,7 +63,9 @@ def puzzle_variant(
     upper["size"] = [0.08, short_bar, 0.08]
     if start_z is not None:
         data["start"][2] = start_z
-    data["goal"] = [0.0, 0.0, SLAB_BOTTOM + slab + 0.4, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
+    data["goal"] = [0.0, 0.0, SLAB_BOTTOM + slab + 0.4, 0.0, 0.0, 0.0, *data["goal"][6:]]
+    if hover_alpha is not None:
+        data["start"][6:] = data["goal"][6:] = [hover_alpha] * 3
     if bounds:
         data["bounds"].update(bounds)
     return scene_from_dict(data, "puzzle variant")

@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 from collections import deque
+from pathlib import Path
 
 import numpy as np
 from puzzle_calibration import SLAB_BOTTOM, puzzle_variant
@@ -43,8 +44,11 @@ def best_alphas(problem: PlanningProblem, tilts: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
-def slice_path(variant: dict, margin: float, max_tilt: float, grid: float = 0.04) -> int | None:
-    """Grid cells on the BFS path through the inflated variant, or None if there is none."""
+def slice_path(
+    variant: dict, margin: float, max_tilt: float, grid: float = 0.04
+) -> np.ndarray | None:
+    """Configurations (M, 9) of the BFS path through the inflated variant, from the
+    start's grid cell to a level cell over the hole, or None if there is none."""
     inflated = dict(variant)
     slab = variant.get("slab", 0.2)
     hole = variant.get("hole", (1.1, 0.5))
@@ -79,10 +83,11 @@ def slice_path(variant: dict, margin: float, max_tilt: float, grid: float = 0.04
     while queue:
         node = queue.popleft()
         if node in targets:
-            length = 0
+            cells = []
             while node is not None:
-                node, length = previous[node], length + 1
-            return length
+                cells.append(node)
+                node = previous[node]
+            return np.array([q[cell] for cell in reversed(cells)])
         for axis in range(3):
             for step in (-1, 1):
                 near = list(node)
@@ -99,11 +104,44 @@ def main() -> None:
     parser.add_argument("--variant", type=json.loads, default={})
     parser.add_argument("--margins", type=float, nargs="+", default=[0.0])
     parser.add_argument("--max-tilt", type=float, default=0.6)
+    parser.add_argument(
+        "--witness", type=Path, help="write the path found at the first margin as a witness"
+    )
     args = parser.parse_args()
     for margin in args.margins:
-        cells = slice_path(args.variant, margin, args.max_tilt)
-        found = f"path of {cells} grid cells" if cells else "no path"
+        path = slice_path(args.variant, margin, args.max_tilt)
+        found = "no path" if path is None else f"path of {len(path)} grid cells"
         print(f"variant {args.variant} margin {margin} m, tilt <= {args.max_tilt}: {found}")
+        if args.witness and margin == args.margins[0] and path is not None:
+            write_witness(args.variant, margin, path, args.witness)
+
+
+def write_witness(variant: dict, margin: float, cells: np.ndarray, out: Path) -> None:
+    """The slice path as a witness: start, the grid path with straight runs merged, a
+    vertical descent to the goal; every motion checked against the real (not inflated)
+    variant at the planner's motion resolution."""
+    problem = PlanningProblem.from_scene(puzzle_variant(**variant))
+    corners = [cells[0]]
+    for before, here, after in zip(cells[:-2], cells[1:-1], cells[2:], strict=True):
+        if not np.allclose(here - before, after - here):
+            corners.append(here)
+    corners.append(cells[-1])
+    over_goal = problem.goal.copy()
+    over_goal[6:] = cells[-1][6:]  # descend at the slice's alphas, then hover as the goal
+    path = np.array([problem.start, *corners, over_goal, problem.goal])
+    valid = problem.validity.motion_is_valid
+    bad = [i for i in range(len(path) - 1) if not valid(path[i], path[i + 1])]
+    if bad:
+        raise SystemExit(f"witness motions {bad} are invalid in the real scene")
+    description = (
+        f"A valid path for the Puzzle variant {json.dumps(variant)}: a breadth-first search "
+        f"on a {len(cells)}-cell (x, z, tilt) grid path at y = 0, tilting about y, with "
+        f"least-cost alphas, against the slab inflated by {margin} m "
+        "(benchmarks/puzzle_passage.py --witness), straight runs merged, then a vertical "
+        "descent to the goal. Every motion is valid at the planner's motion resolution."
+    )
+    out.write_text(json.dumps({"description": description, "path": path.tolist()}, indent=1))
+    print(f"witness of {len(path)} configurations written to {out}")
 
 
 if __name__ == "__main__":

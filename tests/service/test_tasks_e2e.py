@@ -6,6 +6,7 @@ from __future__ import annotations
 import io
 import json
 import time
+import tomllib
 import zipfile
 
 import numpy as np
@@ -13,6 +14,7 @@ import pytest
 from mcap.reader import make_reader
 from pymavlink import mavwp
 
+from flycrane.scene import SCENES_DIR
 from missions.formats import mission_from_json
 from missions.mavlink import MockAutopilot, MockConfig, SimClock
 from missions.mavlink.mock_flight import Geodetic
@@ -120,9 +122,11 @@ def test_upload_refusals(done):
 
 
 def test_cancel_stops_a_running_planner(tmp_path):
-    # Puzzle as first specified is not solved in minutes: the planner is still running.
+    # The Puzzle without tilt has no path (tests/flycrane/test_scene.py): still planning.
+    level = tomllib.loads((SCENES_DIR / "puzzle.toml").read_text(encoding="utf-8"))
+    level["bounds"]["max_tilt"] = 1e-3
     with running_service(tmp_path) as client:
-        accepted = client.post("/v1/tasks", json={"scene": "puzzle",
+        accepted = client.post("/v1/tasks", json={"scene": level,
                                                   "planner": {"time_budget": 300}})
         task_id = accepted.json()["id"]
         wait_status(client, task_id, {"planning"})
