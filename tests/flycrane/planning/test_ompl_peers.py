@@ -3,6 +3,7 @@ result type, and their paths pass our own motion checks."""
 
 from __future__ import annotations
 
+import itertools
 import sys
 
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 from flycrane.planning.ompl_peers import OmplPlanner
 from flycrane.planning.result import PlannerStatus, TerminationCondition
 from flycrane.planning.state_space import ConfigurationSpace
+from flycrane.planning.trrt import TRRTConfig
 from tests.flycrane.planning.toy_validity import ToyValidity
 
 START = np.array([-2.0, 0.0, 3.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0])
@@ -38,6 +40,23 @@ def test_ompl_peer_solves_and_its_path_is_valid_for_us(free_space, algorithm):
     )
     assert result.statistics.nodes >= 2 and result.statistics.expansion_attempts >= 1
     assert "ompl" not in sys.modules  # the parent never loads libompl (exit-time double free)
+
+
+@pytest.mark.parametrize("algorithm", ["rrt", "trrt"])
+def test_ompl_peer_does_not_stop_where_the_goal_is_out_of_reach(free_space, system, algorithm):
+    """Nodes just before a wall lie within reach of the goal behind it, but the straight
+    motion is blocked: the run must go on over the wall, not end there and fail."""
+    space, _ = free_space
+    wall = ToyValidity(system, space, [((-0.2, -4, 0), (0.2, 4, 3.5))])  # below the drones
+    start, goal = START.copy(), START.copy()
+    goal[0] = 1.0  # 3 from the start, behind the wall
+    config = TRRTConfig(step=1.0, goal_connection=2.0)
+    result = OmplPlanner(space, wall, algorithm, config).solve(
+        start, goal, TerminationCondition(60.0), seed=1
+    )
+    assert result.status is PlannerStatus.EXACT_SOLUTION, result.reason
+    assert all(wall.motion_is_valid(a, b) for a, b in itertools.pairwise(result.path))
+    assert result.path[:, 2].max() > 3.5  # P over the wall
 
 
 def test_ompl_peer_reports_invalid_start_without_a_child(free_space):
