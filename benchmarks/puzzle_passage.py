@@ -136,7 +136,8 @@ def write_witness(variant: dict, margin: float, cells: np.ndarray, out: Path) ->
     description = (
         f"A valid path for the Puzzle variant {json.dumps(variant)}: a breadth-first search "
         f"on a {len(cells)}-cell (x, z, tilt) grid path at y = 0, tilting about y, with "
-        f"least-cost alphas, against the slab inflated by {margin} m "
+        f"least-cost alphas, against the slab inflated by {margin} m beyond the scene's "
+        f"obstacle clearance ({problem.scene.collision.obstacle_clearance} m) "
         "(benchmarks/puzzle_passage.py --witness), straight runs merged, then a vertical "
         "descent to the goal. Every motion is valid at the planner's motion resolution."
     )

@@ -103,7 +103,11 @@ class CollisionChecker:
         self._trimmed_cables = [
             fcl.Capsule(settings.cable_radius, float(length)) for length in trimmed
         ]
-        self._ground = fcl.CollisionObject(fcl.Halfspace(np.array([0.0, 0.0, 1.0]), 0.0))
+        # The ground is raised by the clearance, as the obstacles are grown by it.
+        self._ground_z = settings.obstacle_clearance
+        self._ground = fcl.CollisionObject(
+            fcl.Halfspace(np.array([0.0, 0.0, 1.0]), self._ground_z)
+        )
 
     def __reduce__(self):
         return (CollisionChecker, (self.system, self.scene, self.base_dir))
@@ -243,7 +247,8 @@ class CollisionChecker:
             for row, j, o in zip(*np.nonzero(overlap), strict=True):
                 pairs.append((int(row), "fixed", int(j), int(o)))
         if self.scene.ground:
-            for row, body in zip(*np.nonzero(centers[..., 2] - halves[..., 2] <= 0.0), strict=True):
+            low = centers[..., 2] - halves[..., 2] <= self._ground_z
+            for row, body in zip(*np.nonzero(low), strict=True):
                 pairs.append((int(row), *kinds[body], GROUND))
         if self.platform_fixed[1:]:
             pairs += self._payload_pairs(pose)
@@ -322,7 +327,8 @@ class CollisionChecker:
         return found
 
     def clearance(self, q: ArrayLike) -> float:
-        """Smallest distance from any robot body to any obstacle or the ground [m] (9,).
+        """Smallest distance from any robot body to any obstacle or the ground [m] (9,),
+        beyond the scene's ``obstacle_clearance`` (to the grown obstacles, the raised ground).
 
         Obstacles by fcl's distance; the ground from the lowest point of each body's world
         box, which is exact for spheres, capsules and boxes (fcl's halfspace distance
@@ -331,7 +337,8 @@ class CollisionChecker:
         pose = self._pose(as_configurations(q)[:1])
         request = fcl.DistanceRequest()
         centers, halves, kinds = self._robot_boxes(pose)
-        best = float((centers[0, :, 2] - halves[0, :, 2]).min()) if self.scene.ground else np.inf
+        lowest = float((centers[0, :, 2] - halves[0, :, 2]).min())
+        best = lowest - self._ground_z if self.scene.ground else np.inf
         for kind, index in kinds:
             mine = self._robot_object(kind, index, pose, 0)
             for obstacle in self.obstacles:

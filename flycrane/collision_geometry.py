@@ -89,9 +89,10 @@ def platform_body(system: CableSystem, thickness: float) -> Body:
 
 
 def obstacle_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
-    """The scene's obstacles, placed once in the world (ground excluded)."""
+    """The scene's obstacles grown by its clearance, placed once in the world (ground
+    excluded); names and indices are the scene's."""
     bodies = []
-    for index, shape in enumerate(scene.obstacles):
+    for index, shape in enumerate(scene.grown_obstacles()):
         body = body_from_shape(shape, shape.name or f"{shape.kind} {index + 1}", base_dir)
         placed = fcl.CollisionObject(body.geometry, fcl.Transform(body.rotation, body.center))
         bodies.append(

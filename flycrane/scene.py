@@ -149,6 +149,14 @@ class CollisionSettings(BaseModel):
     cable_clearance_at_platform: float = Field(
         0.05, ge=0.0, description="cable length near b_i not checked against the payload [m]"
     )
+    obstacle_clearance: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="least distance from every robot body to the obstacles and the ground "
+        "[m]: obstacles are grown by it and the ground raised, so flown deviations of up "
+        "to this size cannot touch them",
+    )
 
 
 class SceneSpec(BaseModel):
@@ -165,6 +173,31 @@ class SceneSpec(BaseModel):
     start: Configuration
     goal: Configuration
     collision: CollisionSettings = Field(default_factory=CollisionSettings)
+
+    @model_validator(mode="after")
+    def _clearance_can_grow_the_obstacles(self) -> SceneSpec:
+        if self.collision.obstacle_clearance > 0:
+            meshes = [i for i, o in enumerate(self.obstacles) if isinstance(o, Mesh)]
+            if meshes:
+                raise ValueError(
+                    f"collision.obstacle_clearance > 0 cannot grow mesh obstacles "
+                    f"(obstacles {meshes}); give 0 or replace them by boxes, cylinders, spheres"
+                )
+        return self
+
+    def grown_obstacles(self) -> tuple[Shape, ...]:
+        """The obstacles grown by ``collision.obstacle_clearance`` on every side (a box, a
+        cylinder's radius and height, a sphere's radius): every point within the clearance
+        of an obstacle lies in its grown shape (boxes and cylinders also add their corners)."""
+        c = self.collision.obstacle_clearance
+        if c == 0:
+            return self.obstacles
+        grow = {
+            "box": lambda o: {"size": tuple(v + 2 * c for v in o.size)},
+            "cylinder": lambda o: {"radius": o.radius + c, "height": o.height + 2 * c},
+            "sphere": lambda o: {"radius": o.radius + c},
+        }
+        return tuple(o.model_copy(update=grow[o.kind](o)) for o in self.obstacles)
 
     @field_validator("start", "goal")
     @classmethod

@@ -82,6 +82,12 @@ class ValidityChecker:
             (self.system, self.scene, self.space, self.base_dir, self.resolution),
         )
 
+    def with_clearance(self, clearance: float) -> ValidityChecker:
+        """The same checker with another ``obstacle_clearance`` [m] (0: the real obstacles)."""
+        collision = self.scene.collision.model_copy(update={"obstacle_clearance": clearance})
+        scene = self.scene.model_copy(update={"collision": collision})
+        return ValidityChecker(self.system, scene, self.space, self.base_dir, self.resolution)
+
     def cost(self, q: ArrayLike) -> NDArray[np.float64]:
         """c(q) per configuration, +inf where infeasible or outside the bounds (N,)."""
         q = as_configurations(q)

@@ -41,6 +41,47 @@ def test_drone_sphere_clearance_to_a_box_face(system):
     assert contacts[0].depth == pytest.approx(0.05, abs=1e-6)
 
 
+@pytest.mark.parametrize(
+    ("kind", "shape"),
+    [
+        ("box", {"size": [1, 1, 1]}),
+        ("sphere", {"radius": 0.5}),
+        ("cylinder", {"radius": 0.5, "height": 1.0}),
+    ],
+)
+def test_obstacle_clearance_keeps_bodies_that_far_away(system, kind, shape):
+    """Drone 3's sphere 0.1 m from an obstacle's face (x side): free without clearance and
+    with 0.09 m, in collision with 0.11 m, and the clearance left is 0.1 - c."""
+    drone3 = drone_positions_from_configuration(system, HOVER)[0, 2]
+    face = drone3[0] - 0.3 - 0.1
+    obstacle = {"kind": kind, "name": "post", "center": [face - 0.5, 0, drone3[2]], **shape}
+    for clearance, free in ((0.0, True), (0.09, True), (0.11, False)):
+        c = checker(system, [obstacle], collision={"obstacle_clearance": clearance})
+        assert c.collision_free(HOVER)[0] == free, clearance
+        if free:
+            assert c.clearance(HOVER) == pytest.approx(0.1 - clearance, abs=1e-6)
+        else:
+            assert [x.other for x in c.contacts(HOVER)] == ["post"]
+
+
+def test_obstacle_clearance_raises_the_ground(system):
+    payload = [{"kind": "box", "name": "crate", "center": [0, 0, -0.3], "size": [0.4, 0.4, 0.2]}]
+    c = checker(system, payload=payload, collision={"obstacle_clearance": 0.05})
+    # crate bottom at z - 0.4: within 5 cm of the ground below z = 0.45
+    assert not c.collision_free([0, 0, 0.44, 0, 0, 0, 1, 1, 1])[0]
+    assert c.collision_free([0, 0, 0.46, 0, 0, 0, 1, 1, 1])[0]
+    assert c.clearance([0, 0, 0.46, 0, 0, 0, 1, 1, 1]) == pytest.approx(0.01, abs=1e-9)
+
+
+def test_obstacle_clearance_refuses_mesh_obstacles_by_name():
+    from flycrane.scene import SceneError
+
+    mesh = {"kind": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]]}
+    with pytest.raises(SceneError, match="obstacle_clearance > 0 cannot grow mesh obstacles"):
+        scene_from_dict({"obstacles": [mesh], "bounds": BOUNDS, "start": HOVER, "goal": HOVER,
+                         "collision": {"obstacle_clearance": 0.05}})  # fmt: skip
+
+
 def test_cable_crossing_a_thin_bar(system):
     # Cable 1 runs from B1 = (r, 0, 5) to drone 1; a thin bar across its middle hits it.
     r = 1.4 / np.sqrt(3)
