@@ -145,21 +145,25 @@ def test_puzzle_long_bar_is_longer_than_the_hole_diagonal():
 def test_puzzle_has_no_level_passage():
     """With zero tilt the long bar is horizontal; to get below the slab it must, at some
     moment, lie at the slab's mid-height. There every position over the hole and every
-    heading collides (brute force), so no path exists without tilt."""
+    heading collides with the real slab (brute force, no clearance), so no path exists
+    without tilt."""
     problem = PlanningProblem.named("puzzle")
-    slab = next(o for o in problem.scene.obstacles if o.name == "slab west")
+    slab = {o.name: o for o in problem.scene.obstacles}
+    hole_x = slab["slab east"].center[0] * 2 - slab["slab east"].size[0]
+    hole_y = slab["slab north"].center[1] * 2 - slab["slab north"].size[1]
     bar_below_p = -_puzzle_shape(problem.scene, "long bar").center[2]
     x, y, sigma = np.meshgrid(
-        np.linspace(-0.8, 0.8, 17),
-        np.linspace(-0.5, 0.5, 11),
+        np.linspace(-hole_x / 2, hole_x / 2, 19),
+        np.linspace(-hole_y / 2, hole_y / 2, 13),
         np.linspace(0, np.pi, 90, endpoint=False),
         indexing="ij",
     )
     q = np.zeros((x.size, 9))
     q[:, 0], q[:, 1], q[:, 5] = x.ravel(), y.ravel(), sigma.ravel()
-    q[:, 2] = slab.center[2] + bar_below_p
+    q[:, 2] = slab["slab west"].center[2] + bar_below_p
     q[:, 6:] = 1.0
-    assert not problem.validity.collision.collision_free(q).any()
+    real = problem.validity.with_clearance(0.0).collision
+    assert not real.collision_free(q).any()
 
 
 def test_puzzle_is_not_solved_without_tilt():
