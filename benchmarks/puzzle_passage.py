@@ -10,7 +10,7 @@ slab inflated by each margin (thicker, hole smaller on every side), so the large
 with a path is the passage's clearance in this slice; ``--max-tilt`` bounds the tilt, so
 the smallest bound with a path is the tilt the passage needs. The slice ignores y, the
 tilt-axis/torsion alignment and the alphas, where the 9-D passage is narrower: BENCHMARKS.md
-("Puzzle calibration") records both.
+("Puzzle: calibration and Table I") records both.
 """
 
 from __future__ import annotations

@@ -35,9 +35,10 @@ Choices where the paper is silent or scale-dependent:
   tilted low-alpha nodes the tree brings under the slab. From within one step, runs spent
   much of their time with such nodes 0.8-1.0 from the goal, just outside delta = 0.77,
   climbing the cliff one refused transition at a time; from within two steps the straight
-  motion to the goal is tried (and is valid) much sooner. Measured on the shipped Puzzle,
-  seeds 0-9 (BENCHMARKS.md, "Puzzle calibration"): median 19.0 s (max 34.3) with one
-  step, 7.3 s (max 15.3) with two.
+  motion to the goal is tried (and is valid) much sooner. Measured on the Puzzle's
+  1.6 x 1.0 m calibration (before its clearance), seeds 0-9 (BENCHMARKS.md, "Puzzle:
+  calibration and Table I"): median 19.0 s (max 34.3) with one step, 7.3 s (max 15.3)
+  with two.
 """
 
 from __future__ import annotations
