@@ -8,9 +8,8 @@ A variant changes the slab thickness, the hole (x, y), the spacing of the two ba
 upper bar stays 1.1 m below P; a wider spacing lengthens the rod downwards), the bars'
 lengths and the start height (design.md section 7 names these levers), the alphas of the
 start and goal hover (``hover_alpha``), and optionally the sampling bounds and the planner
-step; the goal stays 0.4 m above the slab's top. For each
-planner it prints the solved runs and their times. BENCHMARKS.md ("Puzzle: calibration and Table I")
-records what was run.
+step; the goal stays 0.4 m above the slab's top. For each planner it prints the solved runs
+and their times. BENCHMARKS.md ("Puzzle: calibration and Table I") records what was run.
 """
 
 from __future__ import annotations

@@ -83,7 +83,10 @@ class ValidityChecker:
         )
 
     def with_clearance(self, clearance: float) -> ValidityChecker:
-        """The same checker with another ``obstacle_clearance`` [m] (0: the real obstacles)."""
+        """The same checker with another ``obstacle_clearance`` [m] (0: the real obstacles);
+        itself if the clearance is the same (building one costs the fcl objects)."""
+        if clearance == self.scene.collision.obstacle_clearance:
+            return self
         collision = self.scene.collision.model_copy(update={"obstacle_clearance": clearance})
         scene = self.scene.model_copy(update={"collision": collision})
         return ValidityChecker(self.system, scene, self.space, self.base_dir, self.resolution)

@@ -131,13 +131,18 @@ def _puzzle_shape(scene, name: str):
     return next(shape for shape in scene.payload.shapes if shape.name == name)
 
 
+def _puzzle_hole(scene) -> tuple[float, float]:
+    """The hole's (x, y) size, from the four slab boxes whose outer edges are at +-6 m."""
+    slab = {o.name: o for o in scene.obstacles}
+    east, north = slab["slab east"], slab["slab north"]
+    return east.center[0] * 2 - east.size[0], north.center[1] * 2 - north.size[1]
+
+
 def test_puzzle_long_bar_is_longer_than_the_hole_diagonal():
     """The character design.md asks the calibration to keep, read from the scene file."""
     scene, _ = load_scene("puzzle")
     long_bar = _puzzle_shape(scene, "long bar").size[0]
-    slab = {o.name: o for o in scene.obstacles}
-    hole_x = slab["slab east"].center[0] * 2 - slab["slab east"].size[0]
-    hole_y = slab["slab north"].center[1] * 2 - slab["slab north"].size[1]
+    hole_x, hole_y = _puzzle_hole(scene)
     assert long_bar > np.hypot(hole_x, hole_y)
     assert _puzzle_shape(scene, "short bar").size[1] < hole_y  # passes without a yaw
 
@@ -148,9 +153,8 @@ def test_puzzle_has_no_level_passage():
     heading collides with the real slab (brute force, no clearance), so no path exists
     without tilt."""
     problem = PlanningProblem.named("puzzle")
-    slab = {o.name: o for o in problem.scene.obstacles}
-    hole_x = slab["slab east"].center[0] * 2 - slab["slab east"].size[0]
-    hole_y = slab["slab north"].center[1] * 2 - slab["slab north"].size[1]
+    slab_middle = next(o for o in problem.scene.obstacles if o.name == "slab west").center[2]
+    hole_x, hole_y = _puzzle_hole(problem.scene)
     bar_below_p = -_puzzle_shape(problem.scene, "long bar").center[2]
     x, y, sigma = np.meshgrid(
         np.linspace(-hole_x / 2, hole_x / 2, 19),
@@ -160,7 +164,7 @@ def test_puzzle_has_no_level_passage():
     )
     q = np.zeros((x.size, 9))
     q[:, 0], q[:, 1], q[:, 5] = x.ravel(), y.ravel(), sigma.ravel()
-    q[:, 2] = slab["slab west"].center[2] + bar_below_p
+    q[:, 2] = slab_middle + bar_below_p
     q[:, 6:] = 1.0
     real = problem.validity.with_clearance(0.0).collision
     assert not real.collision_free(q).any()

@@ -139,7 +139,7 @@ def rescue(tmp_path_factory: pytest.TempPathFactory) -> Exported:
 
 @pytest.fixture(scope="module")
 def puzzle(tmp_path_factory: pytest.TempPathFactory) -> Exported:
-    # seed 2: solved in ~1.3 s in the 100-seed benchmark (BENCHMARKS.md)
+    # seed 2: T-RRT solved it in 2.3 s in the 100-seed Table I run (BENCHMARKS.md)
     task = TaskSpec(scene="puzzle", planner=PlannerOptions(seed=2, time_budget=60))
     return export(task, tmp_path_factory)
 
