@@ -30,9 +30,11 @@ def main() -> None:
             clock = time.perf_counter()
             free = [checker.collision_free(q[i : i + batch]) for i in range(0, len(q), batch)]
             seconds = time.perf_counter() - clock
-            print(f"{name:7s} batch {batch:3d}: {len(q) / seconds:9,.0f} configurations/s "
-                  f"({1e6 * seconds / len(q):6.1f} us each), "
-                  f"{np.concatenate(free).mean():.0%} collision-free")
+            print(
+                f"{name:7s} batch {batch:3d}: {len(q) / seconds:9,.0f} configurations/s "
+                f"({1e6 * seconds / len(q):6.1f} us each), "
+                f"{np.concatenate(free).mean():.0%} collision-free"
+            )
 
 
 if __name__ == "__main__":

@@ -52,15 +52,21 @@ def main() -> None:
     compiled = lambda q: configuration_cost(system, q)  # noqa: E731
     reference = lambda q: cost_from_report(system, evaluate_statics(system, q))  # noqa: E731
     compiled(sample(2, rng))  # load the kernel before timing
-    print(f"machine: {platform.machine()} {platform.processor() or ''}, python "
-          f"{platform.python_version()}, numpy {np.__version__}")
-    print(f"{'batch':>6} {'compiled [1/s]':>15} {'per call [us]':>14} {'numpy [1/s]':>13} "
-          f"{'per call [us]':>14} {'ratio':>7}")
+    print(
+        f"machine: {platform.machine()} {platform.processor() or ''}, python "
+        f"{platform.python_version()}, numpy {np.__version__}"
+    )
+    print(
+        f"{'batch':>6} {'compiled [1/s]':>15} {'per call [us]':>14} {'numpy [1/s]':>13} "
+        f"{'per call [us]':>14} {'ratio':>7}"
+    )
     for n in (1, 64, 4096):
         q = sample(n, rng)
         fast, slow = rate(compiled, q, args.seconds), rate(reference, q, args.seconds)
-        print(f"{n:>6} {fast:>15,.0f} {n / fast * 1e6:>14.1f} {slow:>13,.0f} "
-              f"{n / slow * 1e6:>14.1f} {fast / slow:>7.1f}")
+        print(
+            f"{n:>6} {fast:>15,.0f} {n / fast * 1e6:>14.1f} {slow:>13,.0f} "
+            f"{n / slow * 1e6:>14.1f} {fast / slow:>7.1f}"
+        )
 
 
 if __name__ == "__main__":

@@ -45,14 +45,30 @@ def puzzle_variant(
     side = SLAB_HALF_WIDTH - a / 2
     end = SLAB_HALF_WIDTH - b / 2
     data["obstacles"] = [
-        {"kind": "box", "name": "slab west", "center": [-(SLAB_HALF_WIDTH + a / 2) / 2, 0, z],
-         "size": [side, 2 * SLAB_HALF_WIDTH, slab]},
-        {"kind": "box", "name": "slab east", "center": [(SLAB_HALF_WIDTH + a / 2) / 2, 0, z],
-         "size": [side, 2 * SLAB_HALF_WIDTH, slab]},
-        {"kind": "box", "name": "slab north", "center": [0, (SLAB_HALF_WIDTH + b / 2) / 2, z],
-         "size": [a, end, slab]},
-        {"kind": "box", "name": "slab south", "center": [0, -(SLAB_HALF_WIDTH + b / 2) / 2, z],
-         "size": [a, end, slab]},
+        {
+            "kind": "box",
+            "name": "slab west",
+            "center": [-(SLAB_HALF_WIDTH + a / 2) / 2, 0, z],
+            "size": [side, 2 * SLAB_HALF_WIDTH, slab],
+        },
+        {
+            "kind": "box",
+            "name": "slab east",
+            "center": [(SLAB_HALF_WIDTH + a / 2) / 2, 0, z],
+            "size": [side, 2 * SLAB_HALF_WIDTH, slab],
+        },
+        {
+            "kind": "box",
+            "name": "slab north",
+            "center": [0, (SLAB_HALF_WIDTH + b / 2) / 2, z],
+            "size": [a, end, slab],
+        },
+        {
+            "kind": "box",
+            "name": "slab south",
+            "center": [0, -(SLAB_HALF_WIDTH + b / 2) / 2, z],
+            "size": [a, end, slab],
+        },
     ]
     # The upper bar stays where it is below P; a wider spacing lengthens the rod downwards.
     rod, lower, upper = data["payload"]["shapes"]

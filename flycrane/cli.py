@@ -103,23 +103,35 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     total = len(args.scenes) * len(args.planners) * args.runs
     records = []
     with local_executor(args.workers) as executor:
-        for record in run_benchmark(executor, args.scenes, args.planners, args.runs,
-                                    args.budget, base):
+        for record in run_benchmark(
+            executor, args.scenes, args.planners, args.runs, args.budget, base
+        ):
             records.append(record)
-            print(f"[{len(records)}/{total}] {record.scene} {record.planner} seed {record.seed}: "
-                  f"{record.status} in {record.time:.2f} s", file=sys.stderr, flush=True)
+            print(
+                f"[{len(records)}/{total}] {record.scene} {record.planner} seed {record.seed}: "
+                f"{record.status} in {record.time:.2f} s",
+                file=sys.stderr,
+                flush=True,
+            )
     records.sort(key=lambda r: (args.scenes.index(r.scene), args.planners.index(r.planner), r.seed))
     rows = summarize(records)
     write_results(records, rows, out)
     for scene in args.scenes:
         problem = PlanningProblem.named(scene)
         groups = {
-            planner: [path_profile(problem.system, problem.space, np.array(r.path))
-                      for r in records if r.scene == scene and r.planner == planner and r.solved]
+            planner: [
+                path_profile(problem.system, problem.space, np.array(r.path))
+                for r in records
+                if r.scene == scene and r.planner == planner and r.solved
+            ]
             for planner in args.planners
         }
-        plot_profile_bands(groups, problem.system, out / f"fig6_{scene}.png",
-                           title=f"{scene}: tension and thrust ranges along the paths")
+        plot_profile_bands(
+            groups,
+            problem.system,
+            out / f"fig6_{scene}.png",
+            title=f"{scene}: tension and thrust ranges along the paths",
+        )
     print(format_table(rows))
     print(f"results in {out}/ (runs.csv, summary.json, fig6_<scene>.png)")
     return 0
@@ -136,7 +148,11 @@ def build_parser() -> argparse.ArgumentParser:
     statics = sub.add_parser("statics", help="tensions, thrusts, margins and cost at q")
     statics.add_argument("--system", metavar="FILE", help="system .toml/.json (default: benchmark)")
     statics.add_argument(
-        "--q", nargs=9, type=float, metavar="V", default=list(DEFAULT_CONFIGURATION),
+        "--q",
+        nargs=9,
+        type=float,
+        metavar="V",
+        default=list(DEFAULT_CONFIGURATION),
         help="x y z [m] phi theta sigma [rad] alpha1 alpha2 alpha3 [rad] "
         "(default: 0 0 5 0 0 0 1 1 1)",
     )
@@ -151,8 +167,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = sub.add_parser("bench", help="Table I and Fig. 6: planners over scenes and seeds")
     bench.add_argument("--scenes", nargs="+", default=["rescue", "puzzle"])
-    bench.add_argument("--planners", nargs="+", default=["trrt", "rrt", "ompl-trrt", "ompl-rrt"],
-                       choices=["trrt", "rrt", "ompl-trrt", "ompl-rrt"])
+    bench.add_argument(
+        "--planners",
+        nargs="+",
+        default=["trrt", "rrt", "ompl-trrt", "ompl-rrt"],
+        choices=["trrt", "rrt", "ompl-trrt", "ompl-rrt"],
+    )
     bench.add_argument("--runs", type=int, default=100, help="seeds per scene and planner")
     bench.add_argument("--budget", type=float, default=60.0, help="seconds per run")
     bench.add_argument("--step", type=float, help="extension step (default: planner default)")
@@ -184,4 +204,3 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
-

@@ -105,9 +105,7 @@ class CollisionChecker:
         ]
         # The ground is raised by the clearance, as the obstacles are grown by it.
         self._ground_z = settings.obstacle_clearance
-        self._ground = fcl.CollisionObject(
-            fcl.Halfspace(np.array([0.0, 0.0, 1.0]), self._ground_z)
-        )
+        self._ground = fcl.CollisionObject(fcl.Halfspace(np.array([0.0, 0.0, 1.0]), self._ground_z))
 
     def __reduce__(self):
         return (CollisionChecker, (self.system, self.scene, self.base_dir))

@@ -108,9 +108,7 @@ def tilt_torsion_from_matrix(r: ArrayLike) -> NDArray[np.float64]:
     return np.stack([phi, theta, np.angle(np.exp(1j * sigma))], axis=-1)
 
 
-def drone_positions_in_platform_frame(
-    system: CableSystem, alpha: ArrayLike
-) -> NDArray[np.float64]:
+def drone_positions_in_platform_frame(system: CableSystem, alpha: ArrayLike) -> NDArray[np.float64]:
     """Drone positions a'_k in the platform frame for angles alpha, shape (N, 3) -> (N, 3, 3)."""
     alpha = np.asarray(alpha, dtype=float)
     ca, sa = np.cos(alpha)[..., None], np.sin(alpha)[..., None]

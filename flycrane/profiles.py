@@ -124,19 +124,30 @@ def plot_profile_bands(
     return _save(plt, figure, out, title)
 
 
-def plot_path_profile(profile: PathProfile, system: CableSystem, out: str | Path,
-                      title: str = "") -> Path:
+def plot_path_profile(
+    profile: PathProfile, system: CableSystem, out: str | Path, title: str = ""
+) -> Path:
     """One path: each cable's nominal tension and range, each drone's thrust; PNG."""
     plt, figure, (tensions, thrusts) = _figure()
     x = 100 * profile.fraction
     for i in range(6):
         line = tensions.plot(x, profile.tension[:, i], label=f"cable {i + 1}")[0]
-        tensions.fill_between(x, profile.tension_low[:, i], profile.tension_high[:, i],
-                              color=line.get_color(), alpha=0.12)
+        tensions.fill_between(
+            x,
+            profile.tension_low[:, i],
+            profile.tension_high[:, i],
+            color=line.get_color(),
+            alpha=0.12,
+        )
     for k in range(3):
         line = thrusts.plot(x, profile.thrust[:, k], label=f"drone {k + 1} nominal")[0]
-        thrusts.plot(x, profile.thrust_bound[:, k], color=line.get_color(), linestyle=":",
-                     label=f"drone {k + 1} worst case")
+        thrusts.plot(
+            x,
+            profile.thrust_bound[:, k],
+            color=line.get_color(),
+            linestyle=":",
+            label=f"drone {k + 1} worst case",
+        )
     tensions.axhline(system.tension_min.min(), color="black", linestyle="--", linewidth=1)
     thrusts.axhline(system.max_thrusts.max(), color="black", linestyle="--", linewidth=1)
     tensions.set(xlabel="path step", ylabel="cable tension [N]", title="tensions and ranges")

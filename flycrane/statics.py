@@ -87,9 +87,13 @@ def thrust_vectors(
     giving (N, 3, 3), or (N, 6, C) for C tension vectors at once, giving (N, 3, 3, C).
     """
     q = as_configurations(q)
-    w = -cable_vectors(
-        platform_points_from_configuration(system, q), drone_positions_from_configuration(system, q)
-    ) / system.cable_lengths[:, None]
+    w = (
+        -cable_vectors(
+            platform_points_from_configuration(system, q),
+            drone_positions_from_configuration(system, q),
+        )
+        / system.cable_lengths[:, None]
+    )
     stacked = tensions if tensions.ndim == 3 else tensions[..., None]
     pull = w[..., None] * stacked[:, :, None, :]  # (N, 6, 3, C)
     first, second = np.array(DRONE_CABLES).T

@@ -32,9 +32,27 @@ _DRONE_CABLES = np.array(DRONE_CABLES, dtype=np.int64)
 
 @numba.njit(cache=True, nogil=True)
 def _statics_rows(
-    q, points, foot, radius, outward, up, com, drone_weight, thrust_max, f_lo, f_hi,
-    lsqrt, platform_weight, cable_drone, drone_cables, threshold, normalized,
-    f0_out, v_out, m_out, cost_out,
+    q,
+    points,
+    foot,
+    radius,
+    outward,
+    up,
+    com,
+    drone_weight,
+    thrust_max,
+    f_lo,
+    f_hi,
+    lsqrt,
+    platform_weight,
+    cable_drone,
+    drone_cables,
+    threshold,
+    normalized,
+    f0_out,
+    v_out,
+    m_out,
+    cost_out,
 ):
     n = q.shape[0]
     rot = np.empty((3, 3))
@@ -172,12 +190,27 @@ def compiled_statics(
     n = len(q)
     f0, v, m, cost = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 3)), np.empty(n)
     _statics_rows(
-        q, system.platform_points, system.drone_foot, system.drone_radius,
-        system.drone_outward, system.drone_up, system.com_offset,
-        system.drone_masses * system.gravity, system.max_thrusts, system.tension_min,
-        system.tension_max, system.perturbation_sqrt, system.platform_mass * system.gravity,
-        _CABLE_DRONE, _DRONE_CABLES, SINGULARITY_THRESHOLD,
-        CostForm(form) is CostForm.NORMALIZED, f0, v, m, cost,
+        q,
+        system.platform_points,
+        system.drone_foot,
+        system.drone_radius,
+        system.drone_outward,
+        system.drone_up,
+        system.com_offset,
+        system.drone_masses * system.gravity,
+        system.max_thrusts,
+        system.tension_min,
+        system.tension_max,
+        system.perturbation_sqrt,
+        system.platform_mass * system.gravity,
+        _CABLE_DRONE,
+        _DRONE_CABLES,
+        SINGULARITY_THRESHOLD,
+        CostForm(form) is CostForm.NORMALIZED,
+        f0,
+        v,
+        m,
+        cost,
     )
     return f0, v, m, cost
 

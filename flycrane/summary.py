@@ -55,8 +55,12 @@ def statics_summary(
             for k in range(3)
         ],
         "violations": [
-            {"constraint": str(v.constraint), "index": v.index, "margin": _finite(v.margin)[0],
-             "message": str(v)}
+            {
+                "constraint": str(v.constraint),
+                "index": v.index,
+                "margin": _finite(v.margin)[0],
+                "message": str(v),
+            }
             for v in violations(report, row)
         ],
     }

@@ -52,17 +52,19 @@ def _one_for_all(count: int, item: str) -> BeforeValidator:
     return BeforeValidator(broadcast)
 
 
-PerDrone = Annotated[
-    tuple[PositiveFloat, PositiveFloat, PositiveFloat], _one_for_all(3, "drone")
-]
+PerDrone = Annotated[tuple[PositiveFloat, PositiveFloat, PositiveFloat], _one_for_all(3, "drone")]
 PerCable = Annotated[
     tuple[PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat],
     _one_for_all(6, "cable"),
 ]
 PerCableNonNegative = Annotated[
     tuple[
-        NonNegativeFloat, NonNegativeFloat, NonNegativeFloat,
-        NonNegativeFloat, NonNegativeFloat, NonNegativeFloat,
+        NonNegativeFloat,
+        NonNegativeFloat,
+        NonNegativeFloat,
+        NonNegativeFloat,
+        NonNegativeFloat,
+        NonNegativeFloat,
     ],
     _one_for_all(6, "cable"),
 ]
@@ -178,9 +180,7 @@ class Perturbation(_Frozen):
             np.linalg.cholesky(e)
         except np.linalg.LinAlgError:
             eig = np.linalg.eigvalsh(e).min()
-            raise ValueError(
-                f"must be positive definite (smallest eigenvalue {eig:.3g})"
-            ) from None
+            raise ValueError(f"must be positive definite (smallest eigenvalue {eig:.3g})") from None
         return value
 
     def ellipsoid_matrix(self) -> np.ndarray:

@@ -28,6 +28,7 @@ class Annotations:
 
     def records(self) -> list[dict]:
         """One plain dict per waypoint (JSON, MCAP); infinite values as None."""
+
         def clean(values: NDArray) -> list:
             return [float(v) if np.isfinite(v) else None for v in np.ravel(values)]
 
@@ -37,16 +38,22 @@ class Annotations:
                 "time": float(self.time[k]),
                 "cost": clean(self.cost[k])[0],
                 "drones": [
-                    {"drone": j + 1, "thrust": clean(self.thrust[k, j]),
-                     "thrust_magnitude": clean(self.thrust_magnitude[k, j])[0],
-                     "thrust_bound": clean(self.thrust_bound[k, j])[0],
-                     "thrust_margin": clean(self.thrust_margin[k, j])[0]}
+                    {
+                        "drone": j + 1,
+                        "thrust": clean(self.thrust[k, j]),
+                        "thrust_magnitude": clean(self.thrust_magnitude[k, j])[0],
+                        "thrust_bound": clean(self.thrust_bound[k, j])[0],
+                        "thrust_margin": clean(self.thrust_margin[k, j])[0],
+                    }
                     for j in range(3)
                 ],
                 "cables": [
-                    {"cable": i + 1, "tension": clean(self.tension[k, i])[0],
-                     "tension_low": clean(self.tension_low[k, i])[0],
-                     "tension_high": clean(self.tension_high[k, i])[0]}
+                    {
+                        "cable": i + 1,
+                        "tension": clean(self.tension[k, i])[0],
+                        "tension_low": clean(self.tension_low[k, i])[0],
+                        "tension_high": clean(self.tension_high[k, i])[0],
+                    }
                     for i in range(6)
                 ],
             }

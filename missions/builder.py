@@ -81,17 +81,29 @@ class LegSpeeds:
         return [(int(j) + 1, int(k) + 1) for k, j in zip(*np.nonzero(slow), strict=True)]
 
 
-def _position_item(command: MavCmd, lat: float, lon: float, z: float, frame: MavFrame,
-                   **params: float) -> MissionItem:
+def _position_item(
+    command: MavCmd, lat: float, lon: float, z: float, frame: MavFrame, **params: float
+) -> MissionItem:
     return MissionItem(
-        seq=0, frame=frame, command=command, x=int(degrees_to_int(lat)),
-        y=int(degrees_to_int(lon)), z=float(z), **params,
+        seq=0,
+        frame=frame,
+        command=command,
+        x=int(degrees_to_int(lat)),
+        y=int(degrees_to_int(lon)),
+        z=float(z),
+        **params,
     )
 
 
 def _speed_item(speed_type: int, speed: float) -> MissionItem:
-    return MissionItem(seq=0, frame=MavFrame.MISSION, command=MavCmd.DO_CHANGE_SPEED,
-                       param1=float(speed_type), param2=float(speed), param3=-1.0)
+    return MissionItem(
+        seq=0,
+        frame=MavFrame.MISSION,
+        command=MavCmd.DO_CHANGE_SPEED,
+        param1=float(speed_type),
+        param2=float(speed),
+        param3=-1.0,
+    )
 
 
 def build_missions(plan: WaypointPlan, options: MissionOptions) -> list[DroneMission]:
@@ -120,18 +132,33 @@ def build_missions(plan: WaypointPlan, options: MissionOptions) -> list[DroneMis
     missions = []
     for j in range(3):
         items = [
-            _position_item(MavCmd.NAV_WAYPOINT, home_lat[j], home_lon[j], home_amsl[j],
-                           MavFrame.GLOBAL_INT),
+            _position_item(
+                MavCmd.NAV_WAYPOINT, home_lat[j], home_lon[j], home_amsl[j], MavFrame.GLOBAL_INT
+            ),
             _position_item(MavCmd.NAV_TAKEOFF, lat[0, j], lon[0, j], height[0, j], frame),
-            _position_item(MavCmd.NAV_WAYPOINT, lat[0, j], lon[0, j], height[0, j], frame,
-                           param1=float(options.start_hold),
-                           param2=options.acceptance_radius),
+            _position_item(
+                MavCmd.NAV_WAYPOINT,
+                lat[0, j],
+                lon[0, j],
+                height[0, j],
+                frame,
+                param1=float(options.start_hold),
+                param2=options.acceptance_radius,
+            ),
         ]
         if options.start_time_utc is not None:
             at = options.start_time_utc
-            items.append(MissionItem(seq=0, frame=MavFrame.MISSION, command=MavCmd.NAV_DELAY,
-                                     param1=-1.0, param2=float(at.hour),
-                                     param3=float(at.minute), param4=float(at.second)))
+            items.append(
+                MissionItem(
+                    seq=0,
+                    frame=MavFrame.MISSION,
+                    command=MavCmd.NAV_DELAY,
+                    param1=-1.0,
+                    param2=float(at.hour),
+                    param3=float(at.minute),
+                    param4=float(at.second),
+                )
+            )
         ground = climb = descent = None
         for k in range(len(plan.time) - 1):
             h, v = float(speeds.horizontal[k, j]), float(speeds.vertical[k, j])
@@ -144,9 +171,16 @@ def build_missions(plan: WaypointPlan, options: MissionOptions) -> list[DroneMis
             elif v < -1e-6 and (descent is None or abs(-v - descent) > SPEED_TOLERANCE * -v):
                 items.append(_speed_item(DESCENT_SPEED, -v))
                 descent = -v
-            items.append(_position_item(MavCmd.NAV_WAYPOINT, lat[k + 1, j], lon[k + 1, j],
-                                        height[k + 1, j], frame,
-                                        param2=options.acceptance_radius))
+            items.append(
+                _position_item(
+                    MavCmd.NAV_WAYPOINT,
+                    lat[k + 1, j],
+                    lon[k + 1, j],
+                    height[k + 1, j],
+                    frame,
+                    param2=options.acceptance_radius,
+                )
+            )
         end = MavCmd.NAV_LOITER_UNLIM if options.end == "hold" else MavCmd.NAV_LAND
         items.append(_position_item(end, lat[-1, j], lon[-1, j], height[-1, j], frame))
         missions.append(

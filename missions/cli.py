@@ -14,9 +14,12 @@ def _progress(stage: str, report: PlanningProgress | None) -> None:
     if report is None:
         print(f"  {stage} ...", file=sys.stderr, flush=True)
     else:
-        print(f"  planning: {report.elapsed:5.1f} s, {report.nodes} nodes, "
-              f"{report.expansion_attempts} attempts, {report.distance_to_goal:.2f} from the goal",
-              file=sys.stderr, flush=True)
+        print(
+            f"  planning: {report.elapsed:5.1f} s, {report.nodes} nodes, "
+            f"{report.expansion_attempts} attempts, {report.distance_to_goal:.2f} from the goal",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
@@ -29,24 +32,33 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         task, base_dir = TaskSpec(name="rescue (defaults)"), None
     clock = time.perf_counter()
     resolved = resolve_task(task, base_dir)
-    print(f"planning {task.name or 'task'}: scene {resolved.problem.scene.name}, "
-          f"planner {task.planner.algorithm}, seed {task.planner.seed}", file=sys.stderr)
+    print(
+        f"planning {task.name or 'task'}: scene {resolved.problem.scene.name}, "
+        f"planner {task.planner.algorithm}, seed {task.planner.seed}",
+        file=sys.stderr,
+    )
     outcome = run_task(task, args.out, progress=_progress, base_dir=base_dir, resolved=resolved)
     out = Path(args.out)
     print(f"status: {outcome.status}" + (f" ({outcome.reason})" if outcome.reason else ""))
     stats = outcome.planner_statistics
-    print(f"planner: {outcome.planner_status} in {stats.get('time', 0):.2f} s, "
-          f"{stats.get('nodes', 0)} nodes, {stats.get('expansion_attempts', 0)} attempts")
+    print(
+        f"planner: {outcome.planner_status} in {stats.get('time', 0):.2f} s, "
+        f"{stats.get('nodes', 0)} nodes, {stats.get('expansion_attempts', 0)} attempts"
+    )
     if outcome.metrics:
         m = outcome.metrics
-        print(f"path: avgC {m['avg_cost']:.3g}, maxC {m['max_cost']:.3g}, "
-              f"MW {m['mechanical_work']:.3g}, IC {m['cost_integral']:.3g}")
+        print(
+            f"path: avgC {m['avg_cost']:.3g}, maxC {m['max_cost']:.3g}, "
+            f"MW {m['mechanical_work']:.3g}, IC {m['cost_integral']:.3g}"
+        )
     if outcome.mission:
         mission, tolerance = outcome.mission, outcome.mission["timing_tolerance"]
-        print(f"mission: {mission['waypoints']} waypoints, {mission['duration']:.1f} s; "
-              f"tolerates {tolerance['start_offset']:.2f} s start offset "
-              f"({tolerance['start_offset_case']}) and {100 * tolerance['speed_mismatch']:.1f} % "
-              f"speed mismatch ({tolerance['speed_mismatch_case']})")
+        print(
+            f"mission: {mission['waypoints']} waypoints, {mission['duration']:.1f} s; "
+            f"tolerates {tolerance['start_offset']:.2f} s start offset "
+            f"({tolerance['start_offset_case']}) and {100 * tolerance['speed_mismatch']:.1f} % "
+            f"speed mismatch ({tolerance['speed_mismatch_case']})"
+        )
         for k in (1, 2, 3):
             print(f"  drone {k}: {out / f'drone{k}.waypoints'}  {out / f'drone{k}.plan'}")
         print(f"  MCAP log (Foxglove): {out / 'mission.mcap'}")

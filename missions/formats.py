@@ -23,8 +23,10 @@ from missions.geodesy import DEGREE_UNIT
 from missions.items import DroneMission, MavFrame, MissionItem
 
 #: Wire frame -> file frame (decimal degrees).
-FILE_FRAME = {MavFrame.GLOBAL_INT: MavFrame.GLOBAL,
-              MavFrame.GLOBAL_RELATIVE_ALT_INT: MavFrame.GLOBAL_RELATIVE_ALT}
+FILE_FRAME = {
+    MavFrame.GLOBAL_INT: MavFrame.GLOBAL,
+    MavFrame.GLOBAL_RELATIVE_ALT_INT: MavFrame.GLOBAL_RELATIVE_ALT,
+}
 #: MAV_AUTOPILOT_ARDUPILOTMEGA and MAV_TYPE_QUADROTOR, for QGC's plan header.
 FIRMWARE_ARDUPILOT, VEHICLE_QUADROTOR = 3, 2
 
@@ -43,10 +45,14 @@ def waypoints_text(mission: DroneMission) -> str:
     lines = ["QGC WPL 110"]
     for item in mission.items:
         fields = [
-            str(item.seq), "1" if item.seq == 0 else "0", str(_file_frame(item)),
-            str(int(item.command)), *(f"{p:.8f}" for p in (item.param1, item.param2,
-                                                             item.param3, item.param4)),
-            f"{_degrees(item.x):.8f}", f"{_degrees(item.y):.8f}", f"{item.z:.6f}",
+            str(item.seq),
+            "1" if item.seq == 0 else "0",
+            str(_file_frame(item)),
+            str(int(item.command)),
+            *(f"{p:.8f}" for p in (item.param1, item.param2, item.param3, item.param4)),
+            f"{_degrees(item.x):.8f}",
+            f"{_degrees(item.y):.8f}",
+            f"{item.z:.6f}",
             str(item.autocontinue),
         ]
         lines.append("\t".join(fields))
@@ -58,8 +64,15 @@ def qgc_plan(mission: DroneMission, cruise_speed: float) -> dict[str, Any]:
     home, *rest = mission.items
     items = []
     for item in rest:
-        params = [item.param1, item.param2, item.param3, item.param4,
-                  _degrees(item.x), _degrees(item.y), item.z]
+        params = [
+            item.param1,
+            item.param2,
+            item.param3,
+            item.param4,
+            _degrees(item.x),
+            _degrees(item.y),
+            item.z,
+        ]
         entry: dict[str, Any] = {
             "autoContinue": bool(item.autocontinue),
             "command": int(item.command),
@@ -85,8 +98,7 @@ def qgc_plan(mission: DroneMission, cruise_speed: float) -> dict[str, Any]:
             "vehicleType": VEHICLE_QUADROTOR,
             "cruiseSpeed": cruise_speed,
             "hoverSpeed": cruise_speed,
-            "plannedHomePosition": [round(_degrees(home.x), 8), round(_degrees(home.y), 8),
-                                    home.z],
+            "plannedHomePosition": [round(_degrees(home.x), 8), round(_degrees(home.y), 8), home.z],
             "items": items,
         },
     }
@@ -95,16 +107,23 @@ def qgc_plan(mission: DroneMission, cruise_speed: float) -> dict[str, Any]:
 def mission_json(mission: DroneMission) -> dict[str, Any]:
     """Lossless JSON of a mission (every MISSION_ITEM_INT field)."""
     fields = list(MissionItem.__dataclass_fields__)
-    return {"drone": mission.drone,
-            "items": [{f: int(v) if f in ("frame", "command", "mission_type") else v
-                       for f, v in ((f, getattr(i, f)) for f in fields)}
-                      for i in mission.items]}
+    return {
+        "drone": mission.drone,
+        "items": [
+            {
+                f: int(v) if f in ("frame", "command", "mission_type") else v
+                for f, v in ((f, getattr(i, f)) for f in fields)
+            }
+            for i in mission.items
+        ],
+    }
 
 
 def mission_from_json(data: dict[str, Any]) -> DroneMission:
     """Inverse of :func:`mission_json`."""
-    return DroneMission(drone=int(data["drone"]),
-                        items=tuple(MissionItem(**item) for item in data["items"]))
+    return DroneMission(
+        drone=int(data["drone"]), items=tuple(MissionItem(**item) for item in data["items"])
+    )
 
 
 def dumps(document: dict[str, Any]) -> str:

@@ -45,8 +45,12 @@ from missions.items import DroneMission
 from missions.options import MissionOptions
 from missions.tracks import Track
 
-GREY, ORANGE, BLUE, RED = (0.6, 0.6, 0.6, 0.5), (1.0, 0.6, 0.1, 0.9), (0.2, 0.4, 1.0, 0.9), (
-    0.9, 0.1, 0.1, 1.0)
+GREY, ORANGE, BLUE, RED = (
+    (0.6, 0.6, 0.6, 0.5),
+    (1.0, 0.6, 0.1, 0.9),
+    (0.2, 0.4, 1.0, 0.9),
+    (0.9, 0.1, 0.1, 1.0),
+)
 
 
 @dataclass(frozen=True)
@@ -94,7 +98,7 @@ def _add_shape(entity, shape, position, rotation, rgba) -> None:
             for face in shape.faces:
                 for index in face:
                     point = primitive.points.add()
-                    point.x, point.y, point.z = (shape.scale * np.array(shape.vertices[index]))
+                    point.x, point.y, point.z = shape.scale * np.array(shape.vertices[index])
     _set_pose(primitive.pose, center, axes)
     _set_color(primitive.color, rgba)
 
@@ -167,26 +171,44 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
         translation.x, translation.y, translation.z = map(float, q[:3])
         x, y, z, w = Rotation.from_matrix(matrix_from_tilt_torsion(q[3:6])).as_quat()
         transform.rotation.x, transform.rotation.y, transform.rotation.z, transform.rotation.w = (
-            x, y, z, w)
+            x,
+            y,
+            z,
+            w,
+        )
         messages.append((stamp, "/tf", transform.SerializeToString()))
         for j in range(3):
-            fix = LocationFix(frame_id=f"drone{j + 1}", latitude=float(lat[n, j]),
-                              longitude=float(lon[n, j]), altitude=float(alt[n, j]))
+            fix = LocationFix(
+                frame_id=f"drone{j + 1}",
+                latitude=float(lat[n, j]),
+                longitude=float(lon[n, j]),
+                altitude=float(alt[n, j]),
+            )
             fix.timestamp.FromNanoseconds(stamp)
             messages.append((stamp, f"/drone{j + 1}/fix", fix.SerializeToString()))
     for record in inputs.annotations.records():
         stamp = stamp_of(record["time"])
-        tensions = {"time": record["time"], "waypoint": record["waypoint"],
-                    **{f"cable{c['cable']}": c for c in record["cables"]}}
-        thrusts = {"time": record["time"], "waypoint": record["waypoint"],
-                   **{f"drone{d['drone']}": d for d in record["drones"]}}
+        tensions = {
+            "time": record["time"],
+            "waypoint": record["waypoint"],
+            **{f"cable{c['cable']}": c for c in record["cables"]},
+        }
+        thrusts = {
+            "time": record["time"],
+            "waypoint": record["waypoint"],
+            **{f"drone{d['drone']}": d for d in record["drones"]},
+        }
         cost = {"time": record["time"], "waypoint": record["waypoint"], "cost": record["cost"]}
-        for topic, body in (("/annotations/tensions", tensions),
-                            ("/annotations/thrusts", thrusts), ("/annotations/cost", cost)):
+        for topic, body in (
+            ("/annotations/tensions", tensions),
+            ("/annotations/thrusts", thrusts),
+            ("/annotations/cost", cost),
+        ):
             messages.append((stamp, topic, json.dumps(body).encode()))
     for mission in inputs.missions:
-        messages.append((start, f"/mission/drone{mission.drone}",
-                         json.dumps(mission_json(mission)).encode()))
+        messages.append(
+            (start, f"/mission/drone{mission.drone}", json.dumps(mission_json(mission)).encode())
+        )
     messages.sort(key=lambda m: m[0])  # stable: same-time messages keep their order
 
     with path.open("wb") as stream:
@@ -199,7 +221,8 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
             (LocationFix, [f"/drone{j}/fix" for j in (1, 2, 3)]),
         ):
             schema = writer.register_schema(
-                topic_type.DESCRIPTOR.full_name, "protobuf",
+                topic_type.DESCRIPTOR.full_name,
+                "protobuf",
                 build_file_descriptor_set(topic_type).SerializeToString(),
             )
             for topic in topics:

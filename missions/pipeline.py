@@ -72,13 +72,22 @@ def run_task(
     problem = resolved.problem
     report = (lambda stage, p=None: progress(stage, p)) if progress else (lambda *_: None)
     report("planning")
-    planned = plan(problem.space, problem.validity, resolved.start, resolved.goal, task.planner,
-                   should_stop=should_stop, progress=lambda p: report("planning", p))
+    planned = plan(
+        problem.space,
+        problem.validity,
+        resolved.start,
+        resolved.goal,
+        task.planner,
+        should_stop=should_stop,
+        progress=lambda p: report("planning", p),
+    )
     result = planned.result
     base = {
         "planner_status": result.status.value,
-        "planner_statistics": {**result.statistics.as_dict(),
-                               "smoothing_time": planned.smoothing_time},
+        "planner_statistics": {
+            **result.statistics.as_dict(),
+            "smoothing_time": planned.smoothing_time,
+        },
     }
     if not result.status.solved:
         status: Status = "cancelled" if result.status.value == "cancelled" else "failed"
@@ -88,8 +97,12 @@ def run_task(
     report("generating")
     artifacts: dict[str, str] = {}
     options, system = task.mission, problem.system
-    _write(out, "path.json", dumps({"configurations": planned.path.tolist(),
-                                     "raw_path": result.path.tolist()}), artifacts)
+    _write(
+        out,
+        "path.json",
+        dumps({"configurations": planned.path.tolist(), "raw_path": result.path.tolist()}),
+        artifacts,
+    )
     track = track_from_path(system, problem.space, planned.path, options)
     # The plan keeps the scene's obstacle clearance c. The straight legs may use half of it;
     # the other half is left for the flight. The timing tolerance is judged on the real
@@ -99,8 +112,13 @@ def run_task(
     waypoints = reduce_to_waypoints(system, track, legs.is_safe, options)
     metrics = planned.metrics.as_dict() if planned.metrics else None
     if not waypoints.ok:
-        outcome = TaskOutcome("failed", f"mission generation: {waypoints.reason}", metrics=metrics,
-                              artifacts=artifacts, **base)
+        outcome = TaskOutcome(
+            "failed",
+            f"mission generation: {waypoints.reason}",
+            metrics=metrics,
+            artifacts=artifacts,
+            **base,
+        )
         _write(out, "summary.json", dumps(outcome.as_dict()), {})
         return outcome
     annotations = annotate(system, waypoints.time, waypoints.q)
@@ -118,10 +136,12 @@ def run_task(
         "items_per_drone": [len(m.items) for m in missions],
     }
     tracks = {
-        "time": waypoints.time.tolist(), "configurations": waypoints.q.tolist(),
+        "time": waypoints.time.tolist(),
+        "configurations": waypoints.q.tolist(),
         "drones_enu": waypoints.drones.tolist(),
         "drones_wgs84": np.stack([lat, lon, alt], axis=-1).tolist(),
-        "leg_speeds": waypoints.leg_speeds.tolist(), "annotations": annotations.records(),
+        "leg_speeds": waypoints.leg_speeds.tolist(),
+        "annotations": annotations.records(),
         "timing_tolerance": tolerance.as_dict(),
         "dense": {"time": track.time.tolist(), "configurations": track.q.tolist()},
     }
@@ -132,21 +152,36 @@ def run_task(
         _write(out, f"{stem}.plan", dumps(qgc_plan(mission, options.max_drone_speed)), artifacts)
         _write(out, f"{stem}.mission.json", dumps(mission_json(mission)), artifacts)
     start = options.start_time_utc or datetime.now(UTC)
-    write_mcap(out / "mission.mcap", LogInputs(
-        system=system, scene=problem.scene, track=track, annotations=annotations,
-        missions=missions, options=options, start_ns=int(start.timestamp() * 1e9),
-        metadata={"system": system.spec.model_dump(mode="json"),
-                  "scene": problem.scene.model_dump(mode="json"),
-                  "planner": base, "mission": mission_summary},
-    ))
+    write_mcap(
+        out / "mission.mcap",
+        LogInputs(
+            system=system,
+            scene=problem.scene,
+            track=track,
+            annotations=annotations,
+            missions=missions,
+            options=options,
+            start_ns=int(start.timestamp() * 1e9),
+            metadata={
+                "system": system.spec.model_dump(mode="json"),
+                "scene": problem.scene.model_dump(mode="json"),
+                "planner": base,
+                "mission": mission_summary,
+            },
+        ),
+    )
     artifacts["mcap"] = "mission.mcap"
     profile = path_profile(system, problem.space, planned.path)
-    plot_path_profile(profile, system, out / "profile.png",
-                      title=f"{task.name or problem.scene.name}: tensions and thrusts")
+    plot_path_profile(
+        profile,
+        system,
+        out / "profile.png",
+        title=f"{task.name or problem.scene.name}: tensions and thrusts",
+    )
     artifacts["profile"] = "profile.png"
-    outcome = TaskOutcome("done", "", metrics=metrics, mission=mission_summary,
-                          artifacts=artifacts, **base)
+    outcome = TaskOutcome(
+        "done", "", metrics=metrics, mission=mission_summary, artifacts=artifacts, **base
+    )
     _write(out, "summary.json", dumps(outcome.as_dict()), artifacts)
     logger.info("task done in %s: %d waypoints", out, len(waypoints.time))
     return outcome
-

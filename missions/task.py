@@ -103,8 +103,9 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
     ends_given = (("start", task.start, scene.start), ("goal", task.goal, scene.goal))
     for what, given, default in ends_given:
         if isinstance(given, PlatformPose):
-            q = configuration_from_pose(problem.space, problem.validity, given.position,
-                                        given.orientation, what)
+            q = configuration_from_pose(
+                problem.space, problem.validity, given.position, given.orientation, what
+            )
         else:
             q = np.array(default if given is None else given, dtype=float)
             problem.validity.require_valid(q, what)

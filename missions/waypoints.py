@@ -94,9 +94,9 @@ def check_flight(
     planned = planned_configurations(track, times)
     rebuilt = configuration_from_drone_positions(system, drones, initial=planned)
     b = platform_points_from_configuration(system, planned)
-    cable = np.abs(
-        np.linalg.norm(drones[:, CABLE_DRONE] - b, axis=-1) - system.cable_lengths
-    ).max(axis=1)
+    cable = np.abs(np.linalg.norm(drones[:, CABLE_DRONE] - b, axis=-1) - system.cable_lengths).max(
+        axis=1
+    )
     return LegCheck(
         valid=rebuilt.converged & validity(rebuilt.q),
         platform_deviation=np.linalg.norm(rebuilt.q[:, :3] - planned[:, :3], axis=1),
@@ -120,8 +120,9 @@ def reduce_to_waypoints(
         count = max(2, int(np.ceil((t1 - t0) / options.check_resolution)) + 1)
         times = np.linspace(t0, t1, count)
         ends = np.stack([track.drones[i], track.drones[j]])
-        check = check_flight(system, track, drone_positions_at(np.array([t0, t1]), ends, times),
-                             times, validity)
+        check = check_flight(
+            system, track, drone_positions_at(np.array([t0, t1]), ends, times), times, validity
+        )
         badness = np.maximum(
             check.platform_deviation / options.max_platform_deviation,
             check.cable_length_error / options.max_cable_length_error,

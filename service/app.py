@@ -61,8 +61,13 @@ class BodySizeLimit:
 
     async def _refuse(self, send: Send) -> None:
         body = f'{{"detail": "request body larger than {self.limit} bytes"}}'.encode()
-        await send({"type": "http.response.start", "status": 413,
-                    "headers": [(b"content-type", b"application/json")]})
+        await send(
+            {
+                "type": "http.response.start",
+                "status": 413,
+                "headers": [(b"content-type", b"application/json")],
+            }
+        )
         await send({"type": "http.response.body", "body": body})
 
 
@@ -81,8 +86,7 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         store = TaskStore(make_engine(url))
         metrics = ServiceMetrics(store)
         pool = executor or local_executor(settings.workers)
-        jobs = JobManager(store, pool, url, settings.tasks_dir, settings.max_queued_tasks,
-                          metrics)
+        jobs = JobManager(store, pool, url, settings.tasks_dir, settings.max_queued_tasks, metrics)
         app.state.service = ServiceState(settings, store, jobs, metrics)
         resumed = jobs.resume_unfinished()
         if resumed:

@@ -11,8 +11,9 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     from service.app import create_app
     from service.settings import Settings
 
-    overrides = {k: v for k, v in (("data_dir", args.data_dir), ("workers", args.workers))
-                 if v is not None}
+    overrides = {
+        k: v for k, v in (("data_dir", args.data_dir), ("workers", args.workers)) if v is not None
+    }
     settings = Settings(**overrides)
     uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level="info")
     return 0

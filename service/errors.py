@@ -66,18 +66,24 @@ def input_error_body(error: InputError) -> dict:
 
 #: Error types of a union branch the input plainly did not mean (a dict given where the
 #: other branch wanted a string or a list, or the other way round).
-_WRONG_BRANCH = {dict: {"string_type", "list_type", "tuple_type"},
-                 list: {"model_type", "dict_type", "model_attributes_type", "string_type"}}
+_WRONG_BRANCH = {
+    dict: {"string_type", "list_type", "tuple_type"},
+    list: {"model_type", "dict_type", "model_attributes_type", "string_type"},
+}
 
 
 def _readable_location(loc: tuple) -> list:
     """Drop pydantic's union-branch and validator tags from an error location."""
     return [
-        part for part in loc
-        if isinstance(part, int) or not (
-            part in ("str", "int", "float") or "[" in part or part.startswith("function-")
-            or part[:1].isupper() or part in ("octahedral", "generic", "box", "cylinder",
-                                              "sphere", "mesh")
+        part
+        for part in loc
+        if isinstance(part, int)
+        or not (
+            part in ("str", "int", "float")
+            or "[" in part
+            or part.startswith("function-")
+            or part[:1].isupper()
+            or part in ("octahedral", "generic", "box", "cylinder", "sphere", "mesh")
         )
     ]
 

@@ -76,18 +76,27 @@ def run_job(spec: JobSpec) -> str:
             return
         data = {"stage": stage}
         if report is not None:
-            data.update(iterations=report.expansion_attempts, nodes=report.nodes,
-                        distance_to_goal=report.distance_to_goal, elapsed=report.elapsed)
+            data.update(
+                iterations=report.expansion_attempts,
+                nodes=report.nodes,
+                distance_to_goal=report.distance_to_goal,
+                elapsed=report.elapsed,
+            )
         store.update(spec.task_id, spec.attempt, status=TaskStatus(stage), progress=data)
         written.update(at=now, stage=stage)
 
     if should_stop():
-        store.update(spec.task_id, spec.attempt, status=TaskStatus.CANCELLED,
-                     error="cancelled before start")
+        store.update(
+            spec.task_id, spec.attempt, status=TaskStatus.CANCELLED, error="cancelled before start"
+        )
         return TaskStatus.CANCELLED.value
     try:
-        outcome = run_task(TaskSpec.model_validate(spec.request), spec.task_dir,
-                           progress=progress, should_stop=should_stop)
+        outcome = run_task(
+            TaskSpec.model_validate(spec.request),
+            spec.task_dir,
+            progress=progress,
+            should_stop=should_stop,
+        )
         status, result, error = TaskStatus(outcome.status), outcome.as_dict(), outcome.reason
     except Exception as failure:
         logger.exception("task %s failed", spec.task_id)
@@ -132,8 +141,13 @@ class JobManager:
 
     def submit(self, record: TaskRecord) -> None:
         """Queue a stored task (its row already says queued)."""
-        spec = JobSpec(record.id, record.attempt, record.request, self.database_url,
-                       str(self.task_dir(record.id)))
+        spec = JobSpec(
+            record.id,
+            record.attempt,
+            record.request,
+            self.database_url,
+            str(self.task_dir(record.id)),
+        )
         future = self.executor.submit(self.job, spec)
         with self._lock:
             self._futures[record.id] = future
@@ -145,20 +159,25 @@ class JobManager:
         with self._lock:
             future = self._futures.get(task_id)
         if future is not None and future.cancel():
-            record = self.store.update(task_id, status=TaskStatus.CANCELLED,
-                                       error="cancelled while queued")
+            record = self.store.update(
+                task_id, status=TaskStatus.CANCELLED, error="cancelled while queued"
+            )
         return record
 
     def resume_unfinished(self) -> list[str]:
         """After a restart: queue again every task that was queued or running."""
         resumed = []
         for record in self.store.unfinished():
-            record = self.store.update(record.id, status=TaskStatus.QUEUED,
-                                       attempt=record.attempt + 1,
-                                       progress={"stage": "queued", "resumed": True})
+            record = self.store.update(
+                record.id,
+                status=TaskStatus.QUEUED,
+                attempt=record.attempt + 1,
+                progress={"stage": "queued", "resumed": True},
+            )
             if record.cancel_requested:
-                self.store.update(record.id, status=TaskStatus.CANCELLED,
-                                  error="cancelled before a restart")
+                self.store.update(
+                    record.id, status=TaskStatus.CANCELLED, error="cancelled before a restart"
+                )
                 continue
             self.submit(record)
             resumed.append(record.id)
@@ -171,8 +190,11 @@ class JobManager:
             return
         failure = future.exception()
         if failure is not None:  # the worker died or could not even start the job
-            self.store.update(task_id, status=TaskStatus.FAILED,
-                              error=f"worker failed: {type(failure).__name__}: {failure}")
+            self.store.update(
+                task_id,
+                status=TaskStatus.FAILED,
+                error=f"worker failed: {type(failure).__name__}: {failure}",
+            )
         record = self.store.get(task_id)
         if record and record.result:
             seconds = record.result.get("planner_statistics", {}).get("time")

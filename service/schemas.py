@@ -48,10 +48,17 @@ class TaskPublic(BaseModel):
         if files:
             artifacts["bundle.zip"] = f"{url}/bundle.zip"
         return cls(
-            id=record.id, url=url, name=record.request.get("name", ""), status=record.status,
-            created_at=record.created_at, updated_at=record.updated_at,
-            progress=None if record.status.finished else record.progress, error=record.error,
-            cancel_requested=record.cancel_requested, result=record.result, artifacts=artifacts,
+            id=record.id,
+            url=url,
+            name=record.request.get("name", ""),
+            status=record.status,
+            created_at=record.created_at,
+            updated_at=record.updated_at,
+            progress=None if record.status.finished else record.progress,
+            error=record.error,
+            cancel_requested=record.cancel_requested,
+            result=record.result,
+            artifacts=artifacts,
         )
 
 

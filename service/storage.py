@@ -99,9 +99,15 @@ class TaskRecord:
     @classmethod
     def of(cls, row: TaskRow) -> TaskRecord:
         return cls(
-            id=row.id, status=TaskStatus(row.status), created_at=row.created_at,
-            updated_at=row.updated_at, request=row.request, progress=row.progress,
-            result=row.result, error=row.error, cancel_requested=row.cancel_requested,
+            id=row.id,
+            status=TaskStatus(row.status),
+            created_at=row.created_at,
+            updated_at=row.updated_at,
+            request=row.request,
+            progress=row.progress,
+            result=row.result,
+            error=row.error,
+            cancel_requested=row.cancel_requested,
             attempt=row.attempt,
         )
 
@@ -136,8 +142,13 @@ class TaskStore:
             yield session
 
     def create(self, request: dict[str, Any]) -> TaskRecord:
-        row = TaskRow(id=uuid.uuid4().hex, status=TaskStatus.QUEUED.value, request=request,
-                      attempt=0, cancel_requested=False)
+        row = TaskRow(
+            id=uuid.uuid4().hex,
+            status=TaskStatus.QUEUED.value,
+            request=request,
+            attempt=0,
+            cancel_requested=False,
+        )
         with self._session() as session:
             session.add(row)
         return TaskRecord.of(row)

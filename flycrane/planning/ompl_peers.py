@@ -88,12 +88,22 @@ class OmplPlanner:
         for q, status in ((start, PlannerStatus.INVALID_START), (goal, PlannerStatus.INVALID_GOAL)):
             if not self.validity.is_valid(np.asarray(q, dtype=float)[None])[0]:
                 return PlannerResult(
-                    status, np.empty((0, 9)), PlannerStatistics(self.name, seed, 0.0, 0, 0),
+                    status,
+                    np.empty((0, 9)),
+                    PlannerStatistics(self.name, seed, 0.0, 0, 0),
                     self.validity.describe_invalid(np.asarray(q, dtype=float)),
                 )
         budget = max(0.0, termination.time_budget - termination.elapsed())
-        job = _Job(self.space, self.validity, self.algorithm, self.config,
-                   np.asarray(start, float), np.asarray(goal, float), budget, seed)
+        job = _Job(
+            self.space,
+            self.validity,
+            self.algorithm,
+            self.config,
+            np.asarray(start, float),
+            np.asarray(goal, float),
+            budget,
+            seed,
+        )
         context = multiprocessing.get_context("spawn")
         receiver, sender = context.Pipe(duplex=False)
         child = context.Process(target=_child_main, args=(sender, job), daemon=True)
@@ -156,8 +166,19 @@ def _solve(job: _Job) -> tuple[PlannerStatus, NDArray[np.float64], int, int]:
         space.addSubspace(ob.SO2StateSpace(), job.space.alpha_weight)
 
     def to_q(state) -> NDArray[np.float64]:
-        return np.array([state[0][0], state[0][1], state[0][2], state[1].value, state[2][0],
-                         state[3].value, state[4].value, state[5].value, state[6].value])
+        return np.array(
+            [
+                state[0][0],
+                state[0][1],
+                state[0][2],
+                state[1].value,
+                state[2][0],
+                state[3].value,
+                state[4].value,
+                state[5].value,
+                state[6].value,
+            ]
+        )
 
     def set_state(state, q: NDArray) -> None:
         for axis in range(3):

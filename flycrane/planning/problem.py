@@ -40,8 +40,14 @@ class PlanningProblem:
         model = CableSystem.from_spec(scene.system_spec(system))
         b = scene.bounds
         space = ConfigurationSpace.for_system(
-            model, b.position_low, b.position_high, b.max_tilt, b.alpha_low, b.alpha_high,
-            b.sigma_low, b.sigma_high,
+            model,
+            b.position_low,
+            b.position_high,
+            b.max_tilt,
+            b.alpha_low,
+            b.alpha_high,
+            b.sigma_low,
+            b.sigma_high,
         )
         return cls(
             system=model,

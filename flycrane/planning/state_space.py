@@ -131,7 +131,10 @@ class ConfigurationSpace:
         box = np.linalg.norm(np.subtract(self.position_high, self.position_low))
         # Rotation chord is at most 2 sqrt(2) rho_R / sqrt(2); each alpha chord at most 2.
         rotation = 2.0 * self.rotation_weight
-        alpha = self.alpha_weight * np.sqrt(3.0) * 2.0 * np.sin(
-            min(np.pi, self.alpha_high - self.alpha_low) / 2.0
+        alpha = (
+            self.alpha_weight
+            * np.sqrt(3.0)
+            * 2.0
+            * np.sin(min(np.pi, self.alpha_high - self.alpha_low) / 2.0)
         )
         return float(np.sqrt(box**2 + rotation**2 + alpha**2))

@@ -51,8 +51,7 @@ def _await_ack(link: VehicleLink, inbox: Inbox, command: int, until: float) -> b
             continue
         if ack.result == ACCEPTED:
             return True
-        raise CommandRejectedError(link.name, command, ack.result,
-                                   command_result_name(ack.result))
+        raise CommandRejectedError(link.name, command, ack.result, command_result_name(ack.result))
     return False
 
 
@@ -73,8 +72,9 @@ def send_command(
             link.send(command_long(command, link.target, params, confirmation=min(attempt, 255)))
             if _await_ack(link, inbox, command, time.monotonic() + policy.request_timeout_s):
                 return
-    raise MavlinkTimeoutError(link.name, f"COMMAND_ACK for command {command}",
-                              policy.step_timeout_s())
+    raise MavlinkTimeoutError(
+        link.name, f"COMMAND_ACK for command {command}", policy.step_timeout_s()
+    )
 
 
 def request_position_stream(link: VehicleLink, rate_hz: float, policy: RetryPolicy) -> None:
@@ -93,21 +93,36 @@ def request_position_stream(link: VehicleLink, rate_hz: float, policy: RetryPoli
     interval_s = 1.0 / rate_hz
     with link.subscribe(("GLOBAL_POSITION_INT",)) as inbox:
         try:
-            send_command(link, dialect.MAV_CMD_SET_MESSAGE_INTERVAL,
-                         message_interval_params("GLOBAL_POSITION_INT", interval_s), policy)
+            send_command(
+                link,
+                dialect.MAV_CMD_SET_MESSAGE_INTERVAL,
+                message_interval_params("GLOBAL_POSITION_INT", interval_s),
+                policy,
+            )
         except MavlinkError as error:
-            logger.info("%s: SET_MESSAGE_INTERVAL failed (%s), REQUEST_DATA_STREAM instead",
-                        link.name, error)
-            link.send(request_data_stream(dialect.MAV_DATA_STREAM_POSITION,
-                                          max(1, round(rate_hz)), link.target))
+            logger.info(
+                "%s: SET_MESSAGE_INTERVAL failed (%s), REQUEST_DATA_STREAM instead",
+                link.name,
+                error,
+            )
+            link.send(
+                request_data_stream(
+                    dialect.MAV_DATA_STREAM_POSITION, max(1, round(rate_hz)), link.target
+                )
+            )
         try:
-            send_command(link, dialect.MAV_CMD_SET_MESSAGE_INTERVAL,
-                         message_interval_params("MISSION_CURRENT", interval_s), policy)
+            send_command(
+                link,
+                dialect.MAV_CMD_SET_MESSAGE_INTERVAL,
+                message_interval_params("MISSION_CURRENT", interval_s),
+                policy,
+            )
         except MavlinkError as error:
             logger.info("%s: no periodic MISSION_CURRENT: %s", link.name, error)
         if inbox.get(policy.step_timeout_s()) is None:
-            raise MavlinkTimeoutError(link.name, "GLOBAL_POSITION_INT after the stream request",
-                                      policy.step_timeout_s())
+            raise MavlinkTimeoutError(
+                link.name, "GLOBAL_POSITION_INT after the stream request", policy.step_timeout_s()
+            )
 
 
 def arm(link: VehicleLink, policy: RetryPolicy) -> None:

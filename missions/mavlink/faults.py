@@ -30,8 +30,12 @@ class FaultInjection:
     def __post_init__(self) -> None:
         problems = [
             FieldProblem(name, f"must be in [0, 1], got {getattr(self, name)}")
-            for name in ("drop_incoming", "drop_outgoing", "duplicate_incoming",
-                         "duplicate_outgoing")
+            for name in (
+                "drop_incoming",
+                "drop_outgoing",
+                "duplicate_incoming",
+                "duplicate_outgoing",
+            )
             if not 0.0 <= getattr(self, name) <= 1.0
         ]
         if problems:

@@ -47,8 +47,9 @@ def on_every_vehicle(
         If ``work`` raised a :class:`MavlinkError` on any vehicle (other exceptions
         propagate unchanged: they are bugs, not vehicle behaviour).
     """
-    with ThreadPoolExecutor(max_workers=max(len(links), 1),
-                            thread_name_prefix=f"fleet-{operation}") as pool:
+    with ThreadPoolExecutor(
+        max_workers=max(len(links), 1), thread_name_prefix=f"fleet-{operation}"
+    ) as pool:
         futures = [pool.submit(work, link) for link in links]
     failures: dict[str, MavlinkError] = {}
     for link, future in zip(links, futures, strict=True):
@@ -122,14 +123,16 @@ class Fleet:
             raise ValueError(f"{len(missions)} missions for {len(self.links)} vehicles")
         by_link = dict(zip(self.links, missions, strict=True))
         return on_every_vehicle(
-            self.links, "upload",
+            self.links,
+            "upload",
             lambda link: upload_and_verify(link, by_link[link], self.policy, verification),
         )
 
     def request_position_streams(self, rate_hz: float) -> None:
         """GLOBAL_POSITION_INT at ``rate_hz`` [Hz] from every vehicle (confirmed arriving)."""
-        on_every_vehicle(self.links, "stream",
-                         lambda link: request_position_stream(link, rate_hz, self.policy))
+        on_every_vehicle(
+            self.links, "stream", lambda link: request_position_stream(link, rate_hz, self.policy)
+        )
 
     def arm(self) -> None:
         on_every_vehicle(self.links, "arm", lambda link: arm(link, self.policy))

@@ -121,8 +121,13 @@ def mission_item_float(item: MissionItem, target: Endpoint) -> MessageSpec:
     scale = 1e7 if int(item.frame) in GLOBAL_FRAMES else 1.0
     return (
         "MISSION_ITEM",
-        {**_target(target), **_item_fields(item), "x": item.x / scale, "y": item.y / scale,
-         "z": item.z},
+        {
+            **_target(target),
+            **_item_fields(item),
+            "x": item.x / scale,
+            "y": item.y / scale,
+            "z": item.z,
+        },
     )
 
 
@@ -266,8 +271,14 @@ def heartbeat(
     """HEARTBEAT; a ground station sends ``MAV_TYPE_GCS`` with ``MAV_AUTOPILOT_INVALID``."""
     return (
         "HEARTBEAT",
-        {"type": mav_type, "autopilot": autopilot, "base_mode": base_mode,
-         "custom_mode": custom_mode, "system_status": status, "mavlink_version": 3},
+        {
+            "type": mav_type,
+            "autopilot": autopilot,
+            "base_mode": base_mode,
+            "custom_mode": custom_mode,
+            "system_status": status,
+            "mavlink_version": 3,
+        },
     )
 
 
@@ -288,8 +299,13 @@ def command_long(
 def command_ack(command: int, result: int, target: Endpoint) -> MessageSpec:
     return (
         "COMMAND_ACK",
-        {"command": command, "result": result, "progress": 0, "result_param2": 0,
-         **_target(target)},
+        {
+            "command": command,
+            "result": result,
+            "progress": 0,
+            "result_param2": 0,
+            **_target(target),
+        },
     )
 
 
@@ -305,8 +321,12 @@ def request_data_stream(
     """The older REQUEST_DATA_STREAM (ArduPilot's SRx_ rates) for MAV_DATA_STREAM ``stream``."""
     return (
         "REQUEST_DATA_STREAM",
-        {**_target(target), "req_stream_id": stream, "req_message_rate": rate_hz,
-         "start_stop": int(start)},
+        {
+            **_target(target),
+            "req_stream_id": stream,
+            "req_message_rate": rate_hz,
+            "start_stop": int(start),
+        },
     )
 
 
@@ -322,7 +342,15 @@ def global_position_int(
     vx, vy, vz = velocity_ned_cms
     return (
         "GLOBAL_POSITION_INT",
-        {"time_boot_ms": time_boot_ms, "lat": lat_e7, "lon": lon_e7, "alt": alt_mm,
-         "relative_alt": relative_alt_mm, "vx": vx, "vy": vy, "vz": vz, "hdg": heading_cdeg},
+        {
+            "time_boot_ms": time_boot_ms,
+            "lat": lat_e7,
+            "lon": lon_e7,
+            "alt": alt_mm,
+            "relative_alt": relative_alt_mm,
+            "vx": vx,
+            "vy": vy,
+            "vz": vz,
+            "hdg": heading_cdeg,
+        },
     )
-

@@ -78,8 +78,16 @@ _STREAMS = {
     dialect.MAV_DATA_STREAM_EXTENDED_STATUS: (_CURRENT,),
 }
 _MISSION_PROTOCOL = frozenset(
-    {"MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_REQUEST_LIST",
-     "MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_CLEAR_ALL", "MISSION_ACK"}
+    {
+        "MISSION_COUNT",
+        "MISSION_ITEM_INT",
+        "MISSION_ITEM",
+        "MISSION_REQUEST_LIST",
+        "MISSION_REQUEST_INT",
+        "MISSION_REQUEST",
+        "MISSION_CLEAR_ALL",
+        "MISSION_ACK",
+    }
 )
 
 
@@ -155,7 +163,9 @@ class MockAutopilot:
         self._lock = threading.Lock()
         self._channel = FaultyChannel(self.config.faults)
         self.flight = KinematicFlight(
-            self.config.home, self.config.dynamics, self.config.imperfections,
+            self.config.home,
+            self.config.dynamics,
+            self.config.imperfections,
             self.clock.epoch_utc,
         )
         self._home = self.config.home
@@ -275,8 +285,11 @@ class MockAutopilot:
             self._send(reply)
         for msg_id, interval in self._intervals.items():
             if (self._steps - self._phase[msg_id]) % interval == 0:
-                self._send(self._position() if msg_id == _POSITION else
-                           mission_current(self._current, len(self._server.items)))
+                self._send(
+                    self._position()
+                    if msg_id == _POSITION
+                    else mission_current(self._current, len(self._server.items))
+                )
 
     # --- what the vehicle says ----------------------------------------------------------
 
@@ -297,7 +310,10 @@ class MockAutopilot:
             status = dialect.MAV_STATE_ACTIVE if self.armed else dialect.MAV_STATE_STANDBY
         mode = COPTER_MODE_AUTO if self.flight.running else COPTER_MODE_STABILIZE
         return heartbeat(
-            dialect.MAV_TYPE_QUADROTOR, dialect.MAV_AUTOPILOT_ARDUPILOTMEGA, base_mode, mode,
+            dialect.MAV_TYPE_QUADROTOR,
+            dialect.MAV_AUTOPILOT_ARDUPILOTMEGA,
+            base_mode,
+            mode,
             status,
         )
 
@@ -341,8 +357,9 @@ class MockAutopilot:
             self._start_seq = seq
             if self.flight.running:
                 self.flight.start(items, seq, self._home.alt_m)
-        return [mission_current(self._current if self.flight.running else self._start_seq,
-                                len(items))]
+        return [
+            mission_current(self._current if self.flight.running else self._start_seq, len(items))
+        ]
 
     def _set_interval(self, msg_id: int, interval_s: float) -> None:
         """Stream ``msg_id`` every ``interval_s`` (rounded to whole steps, 0 = default,
@@ -362,8 +379,7 @@ class MockAutopilot:
         if command == dialect.MAV_CMD_SET_MESSAGE_INTERVAL:
             if int(msg.param1) not in (_POSITION, _CURRENT):
                 return dialect.MAV_RESULT_FAILED
-            self._set_interval(int(msg.param1), msg.param2 / 1e6 if msg.param2 > 0 else
-                               msg.param2)
+            self._set_interval(int(msg.param1), msg.param2 / 1e6 if msg.param2 > 0 else msg.param2)
             return dialect.MAV_RESULT_ACCEPTED
         return dialect.MAV_RESULT_UNSUPPORTED
 
@@ -380,8 +396,9 @@ class MockAutopilot:
             self.armed = True
             e, n, u = self.flight.position
             origin = self.config.home
-            lat, lon, alt = pymap3d.enu2geodetic(e, n, u, origin.lat_deg, origin.lon_deg,
-                                                 origin.alt_m)
+            lat, lon, alt = pymap3d.enu2geodetic(
+                e, n, u, origin.lat_deg, origin.lon_deg, origin.alt_m
+            )
             self._home = Geodetic(float(lat), float(lon), float(alt))
         return dialect.MAV_RESULT_ACCEPTED
 

@@ -50,8 +50,13 @@ from missions.items import MavCmd, MissionItem
 
 #: The commands the mock flies; anything else is refused at upload (MAV_MISSION_UNSUPPORTED).
 NAV_COMMANDS = frozenset(
-    {MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_UNLIM, MavCmd.NAV_LAND, MavCmd.NAV_TAKEOFF,
-     MavCmd.NAV_DELAY}
+    {
+        MavCmd.NAV_WAYPOINT,
+        MavCmd.NAV_LOITER_UNLIM,
+        MavCmd.NAV_LAND,
+        MavCmd.NAV_TAKEOFF,
+        MavCmd.NAV_DELAY,
+    }
 )
 SUPPORTED_COMMANDS = NAV_COMMANDS | {MavCmd.DO_CHANGE_SPEED}
 #: Nav commands whose x/y/z are a location.
@@ -103,9 +108,7 @@ class Geodetic:
         if not -90.0 <= self.lat_deg <= 90.0:
             problems.append(FieldProblem("lat_deg", f"must be in [-90, 90], got {self.lat_deg}"))
         if not -180.0 <= self.lon_deg <= 180.0:
-            problems.append(
-                FieldProblem("lon_deg", f"must be in [-180, 180], got {self.lon_deg}")
-            )
+            problems.append(FieldProblem("lon_deg", f"must be in [-180, 180], got {self.lon_deg}"))
         if problems:
             raise InputError(problems, source="Geodetic")
 
@@ -187,8 +190,6 @@ class FlightEvent:
     seq: int
 
 
-
-
 @dataclass(frozen=True)
 class SpeedProfile:
     """Along-track motion over one leg: the speed ramps at +-``accel`` from ``v_in`` to
@@ -226,7 +227,8 @@ class SpeedProfile:
     @property
     def duration(self) -> float:
         return (abs(self.v_peak - self.v_in) + abs(self.v_peak - self.v_out)) / self.accel + (
-            self.cruise_s)
+            self.cruise_s
+        )
 
     def at(self, t: float) -> tuple[float, float]:
         """Distance along the leg [m] and speed [m/s] at ``t`` [s] after its start."""
@@ -333,8 +335,12 @@ class KinematicFlight:
             u = alt - self.origin.alt_m
         else:
             e, n, u = pymap3d.geodetic2enu(
-                item.x * 1e-7, item.y * 1e-7, alt,
-                self.origin.lat_deg, self.origin.lon_deg, self.origin.alt_m,
+                item.x * 1e-7,
+                item.y * 1e-7,
+                alt,
+                self.origin.lat_deg,
+                self.origin.lon_deg,
+                self.origin.alt_m,
             )
         return np.array([e, n, u], dtype=float)
 
@@ -372,8 +378,7 @@ class KinematicFlight:
                 target = self.enu_from_item(item, home_alt)
                 through = 1.0 - self.imperfections.waypoint_slowdown
                 exit_fraction = through if self._passes_through(items, seq) else 0.0
-                carry = yield from self._fly(target, self._leg_speed(target), exit_fraction,
-                                             carry)
+                carry = yield from self._fly(target, self._leg_speed(target), exit_fraction, carry)
                 carry = yield from self._hold(max(item.param1, 0.0), carry)
             elif command == MavCmd.NAV_DELAY:
                 carry = yield from self._hold(self._delay_s(item, carry), carry)
@@ -444,8 +449,9 @@ class KinematicFlight:
             return carry
         direction = delta / length
         cruise = speed * self.imperfections.speed_scale
-        profile = SpeedProfile.plan(length, self._speed, cruise, cruise * exit_fraction,
-                                    self.dynamics.max_accel_mps2)
+        profile = SpeedProfile.plan(
+            length, self._speed, cruise, cruise * exit_fraction, self.dynamics.max_accel_mps2
+        )
         duration = profile.duration
         elapsed = carry
         while elapsed < duration:

@@ -205,8 +205,10 @@ class MissionServer:
             return [mission_ack(dialect.MAV_MISSION_DENIED, sender)]
         items = self.items
         if not 0 <= seq < len(items):
-            return [mission_count(len(items), sender),
-                    mission_ack(dialect.MAV_MISSION_INVALID_SEQUENCE, sender)]
+            return [
+                mission_count(len(items), sender),
+                mission_ack(dialect.MAV_MISSION_INVALID_SEQUENCE, sender),
+            ]
         encode = mission_item_int if as_int else mission_item_float
         return [encode(items[seq], sender)]
 
@@ -214,6 +216,10 @@ class MissionServer:
 def home_item(lat_e7: int, lon_e7: int, alt_amsl_m: float) -> MissionItem:
     """Seq 0 as ArduPilot reads it back: the home, a NAV_WAYPOINT in frame GLOBAL (AMSL)."""
     return MissionItem(
-        seq=0, frame=MavFrame.GLOBAL, command=MavCmd.NAV_WAYPOINT, x=lat_e7, y=lon_e7,
+        seq=0,
+        frame=MavFrame.GLOBAL,
+        command=MavCmd.NAV_WAYPOINT,
+        x=lat_e7,
+        y=lon_e7,
         z=alt_amsl_m,
     )

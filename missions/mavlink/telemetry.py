@@ -77,10 +77,17 @@ class TelemetryRecorder:
             kind = msg.get_type()
             with self._lock:
                 if kind == "GLOBAL_POSITION_INT":
-                    buffer.positions.append(PositionSample(
-                        now, msg.time_boot_ms, msg.lat, msg.lon, msg.alt, msg.relative_alt,
-                        (msg.vx, msg.vy, msg.vz),
-                    ))
+                    buffer.positions.append(
+                        PositionSample(
+                            now,
+                            msg.time_boot_ms,
+                            msg.lat,
+                            msg.lon,
+                            msg.alt,
+                            msg.relative_alt,
+                            (msg.vx, msg.vy, msg.vz),
+                        )
+                    )
                 elif kind == "MISSION_CURRENT":
                     buffer.current.append(SeqEvent(now, msg.seq))
                 else:
@@ -111,8 +118,6 @@ class TelemetryRecorder:
         """What has been recorded so far, by vehicle name."""
         with self._lock:
             return {
-                name: VehicleTelemetry(
-                    name, tuple(b.positions), tuple(b.current), tuple(b.reached)
-                )
+                name: VehicleTelemetry(name, tuple(b.positions), tuple(b.current), tuple(b.reached))
                 for name, b in self._buffers.items()
             }

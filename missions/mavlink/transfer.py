@@ -90,12 +90,16 @@ def upload_mission(
         highest = -1  # highest seq the vehicle asked for
         silences = 0
         while True:
-            stage = f"MISSION_REQUEST for item {highest + 1}" if highest + 1 < count else (
-                "MISSION_ACK")
+            stage = (
+                f"MISSION_REQUEST for item {highest + 1}"
+                if highest + 1 < count
+                else ("MISSION_ACK")
+            )
             now = time.monotonic()
             if now >= deadline:
-                raise MavlinkTimeoutError(link.name, f"upload: {stage} (deadline)",
-                                          policy.deadline_s)
+                raise MavlinkTimeoutError(
+                    link.name, f"upload: {stage} (deadline)", policy.deadline_s
+                )
             msg = inbox.get(min(policy.request_timeout_s, deadline - now))
             if msg is None:
                 silences += 1
@@ -110,8 +114,9 @@ def upload_mission(
             silences = 0
             if msg.get_type() != "MISSION_ACK":
                 if not 0 <= msg.seq < count:
-                    logger.warning("%s: request for item %d of %d ignored", link.name,
-                                   msg.seq, count)
+                    logger.warning(
+                        "%s: request for item %d of %d ignored", link.name, msg.seq, count
+                    )
                     continue
                 highest = max(highest, msg.seq)
                 last_sent = mission_item_int(items[msg.seq], link.target)
@@ -120,27 +125,40 @@ def upload_mission(
             result = msg.type
             if result == ACCEPTED:
                 if highest == count - 1:
-                    logger.info("%s: %d items uploaded in %.2f s", link.name, count,
-                                time.monotonic() - started)
+                    logger.info(
+                        "%s: %d items uploaded in %.2f s",
+                        link.name,
+                        count,
+                        time.monotonic() - started,
+                    )
                     return
-                logger.warning("%s: ACCEPTED before item %d was requested: stale, ignored",
-                               link.name, count - 1)
+                logger.warning(
+                    "%s: ACCEPTED before item %d was requested: stale, ignored",
+                    link.name,
+                    count - 1,
+                )
             elif result == dialect.MAV_MISSION_INVALID_SEQUENCE:
-                logger.info("%s: INVALID_SEQUENCE (a duplicate item), transfer goes on",
-                            link.name)
+                logger.info("%s: INVALID_SEQUENCE (a duplicate item), transfer goes on", link.name)
             elif (
                 result == dialect.MAV_MISSION_NO_SPACE
                 and highest < 0
                 and time.monotonic() - started < policy.no_space_retry_s
             ):
-                logger.info("%s: NO_SPACE (vehicle booting?), count again in %.2g s",
-                            link.name, policy.no_space_backoff_s)
+                logger.info(
+                    "%s: NO_SPACE (vehicle booting?), count again in %.2g s",
+                    link.name,
+                    policy.no_space_backoff_s,
+                )
                 time.sleep(min(policy.no_space_backoff_s, max(deadline - time.monotonic(), 0)))
                 link.send(last_sent)
             else:
-                raise MissionTransferError(link.name, "upload", result,
-                                           mission_result_name(result),
-                                           seq=highest if highest >= 0 else None)
+                raise MissionTransferError(
+                    link.name,
+                    "upload",
+                    result,
+                    mission_result_name(result),
+                    seq=highest if highest >= 0 else None,
+                )
 
 
 def _exchange(
@@ -174,8 +192,9 @@ def _exchange(
         if value is not None:
             return value
         if msg.get_type() == "MISSION_ACK" and msg.type != ACCEPTED:
-            raise MissionTransferError(link.name, operation, msg.type,
-                                       mission_result_name(msg.type))
+            raise MissionTransferError(
+                link.name, operation, msg.type, mission_result_name(msg.type)
+            )
 
 
 def download_mission(
@@ -192,9 +211,15 @@ def download_mission(
     types = ("MISSION_COUNT", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK")
     with link.subscribe(types) as inbox:
         count = _exchange(
-            link, inbox, mission_request_list(link.target, mission_type),
+            link,
+            inbox,
+            mission_request_list(link.target, mission_type),
             lambda m: int(m.count) if m.get_type() == "MISSION_COUNT" else None,
-            "download: MISSION_COUNT", "download", policy, deadline, mission_type,
+            "download: MISSION_COUNT",
+            "download",
+            policy,
+            deadline,
+            mission_type,
         )
         items = []
         for seq in range(count):
@@ -204,11 +229,19 @@ def download_mission(
                     return item_from_message(msg)
                 return None
 
-            items.append(_exchange(
-                link, inbox, mission_request_int(seq, link.target, mission_type), item_of,
-                f"download: MISSION_ITEM_INT {seq}", "download", policy, deadline,
-                mission_type,
-            ))
+            items.append(
+                _exchange(
+                    link,
+                    inbox,
+                    mission_request_int(seq, link.target, mission_type),
+                    item_of,
+                    f"download: MISSION_ITEM_INT {seq}",
+                    "download",
+                    policy,
+                    deadline,
+                    mission_type,
+                )
+            )
         link.send(mission_ack(ACCEPTED, link.target, mission_type))
     return tuple(items)
 
@@ -224,7 +257,13 @@ def clear_mission(link: VehicleLink, policy: RetryPolicy, mission_type: int = 0)
     deadline = time.monotonic() + policy.deadline_s
     with link.subscribe(("MISSION_ACK",)) as inbox:
         _exchange(
-            link, inbox, mission_clear_all(link.target, mission_type),
+            link,
+            inbox,
+            mission_clear_all(link.target, mission_type),
             lambda m: True if m.type == ACCEPTED else None,
-            "clear: MISSION_ACK", "clear", policy, deadline, mission_type,
+            "clear: MISSION_ACK",
+            "clear",
+            policy,
+            deadline,
+            mission_type,
         )

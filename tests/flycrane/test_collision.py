@@ -19,10 +19,16 @@ BOUNDS = {"position_low": [-20, -20, 0], "position_high": [20, 20, 20]}
 
 
 def checker(system: CableSystem, obstacles=(), payload=(), **extra) -> CollisionChecker:
-    scene = scene_from_dict({
-        "obstacles": list(obstacles), "payload": {"shapes": list(payload)}, "bounds": BOUNDS,
-        "start": HOVER, "goal": HOVER, **extra,
-    })
+    scene = scene_from_dict(
+        {
+            "obstacles": list(obstacles),
+            "payload": {"shapes": list(payload)},
+            "bounds": BOUNDS,
+            "start": HOVER,
+            "goal": HOVER,
+            **extra,
+        }
+    )
     return CollisionChecker(system, scene)
 
 
@@ -117,7 +123,9 @@ def test_drone_separation_just_above_and_below_the_minimum(system):
         assert c.collision_free(HOVER)[0] is np.True_ if free else not c.collision_free(HOVER)[0]
     hits = checker(system, collision={"min_drone_separation": gap + 0.01}).contacts(HOVER)
     assert {(x.body, x.other) for x in hits} == {
-        ("drone 1", "drone 2"), ("drone 1", "drone 3"), ("drone 2", "drone 3")
+        ("drone 1", "drone 2"),
+        ("drone 1", "drone 3"),
+        ("drone 2", "drone 3"),
     }
 
 
@@ -149,10 +157,16 @@ def test_cable_against_payload_but_not_at_its_attachment(system):
 
 def test_mesh_obstacle_from_an_stl_file(system, tmp_path):
     trimesh.creation.box(extents=[1, 1, 1]).export(tmp_path / "cube.stl")
-    scene = scene_from_dict({
-        "obstacles": [{"kind": "mesh", "name": "cube", "file": "cube.stl", "center": [0, 0, 5]}],
-        "bounds": BOUNDS, "start": HOVER, "goal": HOVER,
-    })
+    scene = scene_from_dict(
+        {
+            "obstacles": [
+                {"kind": "mesh", "name": "cube", "file": "cube.stl", "center": [0, 0, 5]}
+            ],
+            "bounds": BOUNDS,
+            "start": HOVER,
+            "goal": HOVER,
+        }
+    )
     c = CollisionChecker(system, scene, tmp_path)
     assert next(x.other for x in c.contacts(HOVER)) == "cube"  # platform inside the cube
     assert c.collision_free([5, 5, 5, 0, 0, 0, 1, 1, 1])[0]

@@ -13,9 +13,15 @@ from flycrane.statics import evaluate_statics
 from tests.conftest import random_configurations
 
 configurations = st.tuples(
-    st.floats(-20, 20), st.floats(-20, 20), st.floats(1, 30),
-    st.floats(-np.pi, np.pi), st.floats(0, 1.0), st.floats(-np.pi, np.pi),
-    st.floats(0.2, 2.0), st.floats(0.2, 2.0), st.floats(0.2, 2.0),
+    st.floats(-20, 20),
+    st.floats(-20, 20),
+    st.floats(1, 30),
+    st.floats(-np.pi, np.pi),
+    st.floats(0, 1.0),
+    st.floats(-np.pi, np.pi),
+    st.floats(0.2, 2.0),
+    st.floats(0.2, 2.0),
+    st.floats(0.2, 2.0),
 )
 
 SYSTEM = CableSystem.from_spec()

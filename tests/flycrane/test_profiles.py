@@ -19,8 +19,10 @@ SPACE = ConfigurationSpace((-5, -5, 0), (5, 5, 10), 0.5, 0.3, 1.8, 2.0, 1.5)
 
 def test_fractions_are_by_path_length():
     # Two segments of lengths 1 and 3: the quarter point is the end of the first.
-    path = np.array([[0, 0, 5, 0, 0, 0, 1, 1, 1], [1, 0, 5, 0, 0, 0, 1, 1, 1],
-                     [1, 3, 5, 0, 0, 0, 1, 1, 1]], dtype=float)
+    path = np.array(
+        [[0, 0, 5, 0, 0, 0, 1, 1, 1], [1, 0, 5, 0, 0, 0, 1, 1, 1], [1, 3, 5, 0, 0, 0, 1, 1, 1]],
+        dtype=float,
+    )
     q = configurations_at_fractions(path, SPACE, np.array([0.0, 0.25, 0.5, 1.0]))
     np.testing.assert_allclose(q[:, :2], [[0, 0], [1, 0], [1, 1], [1, 3]], atol=1e-12)
 

@@ -20,20 +20,31 @@ def test_speed_items_fit_the_encoded_waypoints_of_near_vertical_legs():
     start = np.array([[0.0, 0.0, 2.0], [1.0, 0.0, 2.0], [0.0, 1.0, 2.0]])
     drift = np.array([0.0173, 0.0306, 0.0])  # chosen to round far from the true run
     plan = WaypointPlan(
-        ok=True, indices=np.arange(2), time=np.array([0.0, 10.0]), q=np.zeros((2, 9)),
+        ok=True,
+        indices=np.arange(2),
+        time=np.array([0.0, 10.0]),
+        q=np.zeros((2, 9)),
         drones=np.stack([start, start + drift + [0.0, 0.0, 5.0]]),
-        max_platform_deviation=0.0, max_cable_length_error=0.0,
+        max_platform_deviation=0.0,
+        max_cable_length_error=0.0,
     )
     rounding = []
     for mission in build_missions(plan, options):
-        by_type = {int(i.param1): i.param2 for i in mission.items
-                   if i.command == MavCmd.DO_CHANGE_SPEED}
+        by_type = {
+            int(i.param1): i.param2 for i in mission.items if i.command == MavCmd.DO_CHANGE_SPEED
+        }
         waypoints = [i for i in mission.items if i.command == MavCmd.NAV_WAYPOINT][1:]
-        ends = np.array([
-            enu_from_geodetic(i.x * DEGREE_UNIT, i.y * DEGREE_UNIT,
-                              i.z + options.origin.altitude, options.origin)
-            for i in waypoints
-        ])
+        ends = np.array(
+            [
+                enu_from_geodetic(
+                    i.x * DEGREE_UNIT,
+                    i.y * DEGREE_UNIT,
+                    i.z + options.origin.altitude,
+                    options.origin,
+                )
+                for i in waypoints
+            ]
+        )
         run = float(np.linalg.norm(ends[1, :2] - ends[0, :2]))
         rounding.append(abs(run - float(np.linalg.norm(drift[:2]))))
         assert by_type[GROUND_SPEED] * 10.0 == pytest.approx(run, rel=1e-6)
@@ -47,14 +58,21 @@ def test_climb_speeds_fit_the_centimetres_ardupilot_stores():
     options = MissionOptions()
     start = np.array([[0.0, 0.0, 2.026], [1.0, 0.0, 2.026], [0.0, 1.0, 2.026]])
     plan = WaypointPlan(
-        ok=True, indices=np.arange(2), time=np.array([0.0, 10.0]), q=np.zeros((2, 9)),
+        ok=True,
+        indices=np.arange(2),
+        time=np.array([0.0, 10.0]),
+        q=np.zeros((2, 9)),
         drones=np.stack([start, start + np.array([2.0, 0.0, 0.016])]),
-        max_platform_deviation=0.0, max_cable_length_error=0.0,
+        max_platform_deviation=0.0,
+        max_cable_length_error=0.0,
     )
     assert ardupilot_altitude([2.026, 2.042]) == pytest.approx([2.02, 2.04])
     for mission in build_missions(plan, options):
-        climb = [i.param2 for i in mission.items
-                 if i.command == MavCmd.DO_CHANGE_SPEED and i.param1 == CLIMB_SPEED]
+        climb = [
+            i.param2
+            for i in mission.items
+            if i.command == MavCmd.DO_CHANGE_SPEED and i.param1 == CLIMB_SPEED
+        ]
         waypoints = [i for i in mission.items if i.command == MavCmd.NAV_WAYPOINT][1:]
         run = float(np.diff(ardupilot_altitude([w.z for w in waypoints]))[0])
         # ENU "up" bends with the earth: 0.3 um over the 2 m leg

@@ -45,9 +45,14 @@ def test_rescue_is_planned_and_every_artifact_is_served(done, tmp_path):
     assert task["result"]["planner_status"] == "exact_solution"
     assert task["result"]["metrics"]["max_cost"] > 0
     names = set(task["artifacts"])
-    expected = {"path.json", "tracks.json", "mission.mcap", "profile.png", "summary.json",
-                "bundle.zip"} | {f"drone{k}.{ext}" for k in (1, 2, 3)
-                                 for ext in ("waypoints", "plan", "mission.json")}
+    expected = {
+        "path.json",
+        "tracks.json",
+        "mission.mcap",
+        "profile.png",
+        "summary.json",
+        "bundle.zip",
+    } | {f"drone{k}.{ext}" for k in (1, 2, 3) for ext in ("waypoints", "plan", "mission.json")}
     assert names == expected
     for k in (1, 2, 3):
         text = client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.waypoints").text
@@ -126,8 +131,7 @@ def test_cancel_stops_a_running_planner(tmp_path):
     level = tomllib.loads((SCENES_DIR / "puzzle.toml").read_text(encoding="utf-8"))
     level["bounds"]["max_tilt"] = 1e-3
     with running_service(tmp_path) as client:
-        accepted = client.post("/v1/tasks", json={"scene": level,
-                                                  "planner": {"time_budget": 300}})
+        accepted = client.post("/v1/tasks", json={"scene": level, "planner": {"time_budget": 300}})
         task_id = accepted.json()["id"]
         wait_status(client, task_id, {"planning"})
         progress = wait_progress(client, task_id)

@@ -13,8 +13,7 @@ router = APIRouter(tags=["health"])
 
 @router.get("/healthz", response_model=Health)
 def healthz(state: ServiceState = Depends(get_state)) -> Health:
-    return Health(status="ok", tasks_in_flight=state.jobs.in_flight,
-                  workers=state.settings.workers)
+    return Health(status="ok", tasks_in_flight=state.jobs.in_flight, workers=state.settings.workers)
 
 
 @router.get("/metrics")

@@ -19,5 +19,8 @@ def statics(body: StaticsCreate) -> dict:
     spec = system_preset(body.system) if isinstance(body.system, str) else body.system
     system = CableSystem.from_spec(spec)
     report = evaluate_statics(system, body.q)
-    return {"results": [statics_summary(system, report, body.cost_form, row)
-                        for row in range(len(body.q))]}
+    return {
+        "results": [
+            statics_summary(system, report, body.cost_form, row) for row in range(len(body.q))
+        ]
+    }

@@ -51,16 +51,19 @@ def _check_limits(task: TaskSpec, state: ServiceState) -> None:
     if not isinstance(task.scene, str):
         for index, shape in enumerate([*task.scene.obstacles, *task.scene.payload.shapes]):
             if getattr(shape, "file", None) is not None:
-                problems.append(FieldProblem(
-                    f"scene.shape[{index}].file",
-                    "mesh files cannot be referenced over HTTP; give vertices and faces",
-                ))
+                problems.append(
+                    FieldProblem(
+                        f"scene.shape[{index}].file",
+                        "mesh files cannot be referenced over HTTP; give vertices and faces",
+                    )
+                )
     if problems:
         raise InputError(problems)
 
 
-@router.post("", status_code=202, response_model=TaskAccepted,
-             dependencies=[Depends(require_token)])
+@router.post(
+    "", status_code=202, response_model=TaskAccepted, dependencies=[Depends(require_token)]
+)
 async def create_task(
     task: TaskSpec, request: Request, state: ServiceState = Depends(get_state)
 ) -> TaskAccepted | JSONResponse:
@@ -71,8 +74,15 @@ async def create_task(
     except InvalidConfigurationError as error:
         state.metrics.submissions.labels("invalid").inc()
         return JSONResponse(
-            {"detail": [{"loc": ["body", error.what], "msg": str(error.reason),
-                         "type": "invalid_configuration"}]},
+            {
+                "detail": [
+                    {
+                        "loc": ["body", error.what],
+                        "msg": str(error.reason),
+                        "type": "invalid_configuration",
+                    }
+                ]
+            },
             status_code=422,
         )
     except InputError:
@@ -101,8 +111,9 @@ def list_tasks(
     """Tasks, newest first, optionally of one status."""
     records, total = state.store.list(status, offset, limit)
     base = str(request.base_url)
-    return TaskPage(items=[TaskPublic.of(r, base) for r in records], total=total,
-                    offset=offset, limit=limit)
+    return TaskPage(
+        items=[TaskPublic.of(r, base) for r in records], total=total, offset=offset, limit=limit
+    )
 
 
 @router.get("/{task_id}", response_model=TaskPublic)
@@ -146,17 +157,23 @@ def get_bundle(task_id: str, state: ServiceState = Depends(get_state)) -> Respon
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
         for name in sorted(set(files.values())):
             archive.write(_artifact_path(state, record, name), arcname=name)
-    return Response(buffer.getvalue(), media_type="application/zip",
-                    headers={"Content-Disposition": f'attachment; filename="{task_id}.zip"'})
+    return Response(
+        buffer.getvalue(),
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="{task_id}.zip"'},
+    )
 
 
 def _allowed(address: str, patterns: tuple[str, ...]) -> bool:
     return any(re.fullmatch(pattern, address) for pattern in patterns)
 
 
-@router.post("/{task_id}/upload", response_model=UploadPublic,
-             dependencies=[Depends(require_token)],
-             responses={502: {"model": UploadPublic}})
+@router.post(
+    "/{task_id}/upload",
+    response_model=UploadPublic,
+    dependencies=[Depends(require_token)],
+    responses={502: {"model": UploadPublic}},
+)
 async def upload_task(
     task_id: str, body: UploadCreate, state: ServiceState = Depends(get_state)
 ) -> UploadPublic | JSONResponse:
@@ -174,8 +191,11 @@ async def upload_task(
     if record.status is not TaskStatus.DONE:
         raise TaskNotReadyError(f"task {task_id} is {record.status}, not done")
     missions = [
-        mission_from_json(json.loads(_artifact_path(state, record, f"drone{k}.mission.json")
-                                     .read_text(encoding="utf-8")))
+        mission_from_json(
+            json.loads(
+                _artifact_path(state, record, f"drone{k}.mission.json").read_text(encoding="utf-8")
+            )
+        )
         for k in (1, 2, 3)
     ]
     policy = RetryPolicy(deadline_s=state.settings.upload_timeout)
@@ -188,9 +208,15 @@ async def upload_task(
         failures = {v: f"{type(error).__name__}: {error}" for v in body.vehicles}
     outcome = UploadPublic(
         ok=not failures,
-        vehicles=[VehicleUpload(drone=k + 1, vehicle=v, ok=v not in failures,
-                                detail=failures.get(v, "uploaded and verified"))
-                  for k, v in enumerate(body.vehicles)],
+        vehicles=[
+            VehicleUpload(
+                drone=k + 1,
+                vehicle=v,
+                ok=v not in failures,
+                detail=failures.get(v, "uploaded and verified"),
+            )
+            for k, v in enumerate(body.vehicles)
+        ],
     )
     state.store.add_upload(task_id, outcome.model_dump())
     if failures:

@@ -33,8 +33,11 @@ def no_leaked_threads() -> Iterator[None]:
     while time.monotonic() < deadline:
         # "Dummy-N" threads are foreign (C++) threads that once ran a Python callback,
         # e.g. MAVSDK's: Python lists them forever, they are not ours to join.
-        leaked = [t for t in threading.enumerate() if t not in before and t.is_alive()
-                  and not t.name.startswith("Dummy-")]
+        leaked = [
+            t
+            for t in threading.enumerate()
+            if t not in before and t.is_alive() and not t.name.startswith("Dummy-")
+        ]
         if not leaked:
             return
         time.sleep(0.02)
@@ -84,15 +87,24 @@ def waypoint_mission(drone: int, count: int) -> DroneMission:
     """Home, takeoff to 5 m, then ``count`` waypoints 1e-5 degree apart with distinct params,
     so that any swapped or altered item shows."""
     items = [
-        MissionItem(0, MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_WAYPOINT,
-                    x=round(HOME.lat_deg * 1e7), y=round(HOME.lon_deg * 1e7)),
+        MissionItem(
+            0,
+            MavFrame.GLOBAL_RELATIVE_ALT_INT,
+            MavCmd.NAV_WAYPOINT,
+            x=round(HOME.lat_deg * 1e7),
+            y=round(HOME.lon_deg * 1e7),
+        ),
         MissionItem(1, MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_TAKEOFF, z=5.0),
     ]
     for k in range(count):
         items.append(
             MissionItem(
-                len(items), MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_WAYPOINT,
-                param1=0.1 * k, param2=0.5 + drone, param4=float("nan"),
+                len(items),
+                MavFrame.GLOBAL_RELATIVE_ALT_INT,
+                MavCmd.NAV_WAYPOINT,
+                param1=0.1 * k,
+                param2=0.5 + drone,
+                param4=float("nan"),
                 x=round(HOME.lat_deg * 1e7) + 100 * k + drone,
                 y=round(HOME.lon_deg * 1e7) - 37 * k,
                 z=5.0 + 0.123 * k,

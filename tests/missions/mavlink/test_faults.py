@@ -33,8 +33,13 @@ from .test_upload import comparable
 
 # Loopback round trips take milliseconds; many retries make a 20 % loss harmless (five
 # silences in a row at 36 % loss per round trip: about 1 %; eleven: 1e-5).
-LOSSY_POLICY = RetryPolicy(request_timeout_s=0.1, retries=10, deadline_s=30.0,
-                           heartbeat_timeout_s=3.0, gcs_heartbeat_interval_s=0.1)
+LOSSY_POLICY = RetryPolicy(
+    request_timeout_s=0.1,
+    retries=10,
+    deadline_s=30.0,
+    heartbeat_timeout_s=3.0,
+    gcs_heartbeat_interval_s=0.1,
+)
 
 
 @pytest.mark.parametrize(
@@ -42,8 +47,13 @@ LOSSY_POLICY = RetryPolicy(request_timeout_s=0.1, retries=10, deadline_s=30.0,
     [
         FaultInjection(drop_incoming=0.2, drop_outgoing=0.2, seed=1),
         FaultInjection(duplicate_incoming=0.2, duplicate_outgoing=0.2, seed=2),
-        FaultInjection(drop_incoming=0.2, drop_outgoing=0.2, duplicate_incoming=0.2,
-                       duplicate_outgoing=0.2, seed=3),
+        FaultInjection(
+            drop_incoming=0.2,
+            drop_outgoing=0.2,
+            duplicate_incoming=0.2,
+            duplicate_outgoing=0.2,
+            seed=3,
+        ),
     ],
     ids=["drop", "duplicate", "both"],
 )
@@ -64,8 +74,9 @@ def test_lossy_link_still_delivers_the_complete_mission(spawn_mock, faults):
 
 def test_vehicle_that_never_answers_gives_the_timeout_error_in_time(spawn_mock):
     _, address = spawn_mock(MockConfig(home=HOME, faults=FaultInjection(unresponsive=True)))
-    policy = RetryPolicy(request_timeout_s=0.2, retries=2, heartbeat_timeout_s=3.0,
-                         gcs_heartbeat_interval_s=0.1)
+    policy = RetryPolicy(
+        request_timeout_s=0.2, retries=2, heartbeat_timeout_s=3.0, gcs_heartbeat_interval_s=0.1
+    )
     with VehicleLink(address, policy, name="mute") as link:
         link.wait_heartbeat()  # its heartbeats do arrive
         started = time.monotonic()
@@ -151,8 +162,9 @@ def test_mock_refuses_items_out_of_order_but_keeps_the_transfer_open(spawn_mock,
         seen = []
         with link.subscribe(kinds) as inbox:
             while (msg := inbox.get(1.0)) is not None:
-                seen.append((msg.get_type(), msg.seq if msg.get_type() != "MISSION_ACK"
-                             else msg.type))
+                seen.append(
+                    (msg.get_type(), msg.seq if msg.get_type() != "MISSION_ACK" else msg.type)
+                )
                 if msg.get_type() == "MISSION_ACK":
                     break
     assert seen.count(("MISSION_REQUEST", 1)) >= 5

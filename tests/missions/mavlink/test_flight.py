@@ -37,13 +37,13 @@ def lat_lon_e7(east: float, north: float) -> tuple[int, int]:
 
 def item(seq, command, *, frame=REL, p1=0.0, p2=0.0, p3=0.0, p4=0.0, en=None, z=0.0):
     x, y = lat_lon_e7(*en) if en is not None else (0, 0)
-    return MissionItem(seq, frame, command, param1=p1, param2=p2, param3=p3, param4=p4,
-                       x=x, y=y, z=z)
+    return MissionItem(
+        seq, frame, command, param1=p1, param2=p2, param3=p3, param4=p4, x=x, y=y, z=z
+    )
 
 
 def home_item() -> MissionItem:
-    return item(0, MavCmd.NAV_WAYPOINT, frame=MavFrame.GLOBAL, z=HOME.alt_m,
-                en=(0.0, 0.0))
+    return item(0, MavCmd.NAV_WAYPOINT, frame=MavFrame.GLOBAL, z=HOME.alt_m, en=(0.0, 0.0))
 
 
 def enu_track(samples) -> tuple[np.ndarray, np.ndarray]:
@@ -52,7 +52,10 @@ def enu_track(samples) -> tuple[np.ndarray, np.ndarray]:
     e, n, _ = pymap3d.geodetic2enu(
         np.array([s.lat_e7 for s in samples]) * 1e-7,
         np.array([s.lon_e7 for s in samples]) * 1e-7,
-        HOME.alt_m, HOME.lat_deg, HOME.lon_deg, HOME.alt_m,
+        HOME.alt_m,
+        HOME.lat_deg,
+        HOME.lon_deg,
+        HOME.alt_m,
     )
     up = np.array([s.relative_alt_mm for s in samples]) / 1000.0
     return t, np.column_stack([e, n, up])
@@ -98,16 +101,19 @@ def wait_for(predicate, timeout: float) -> None:
 
 def test_flown_legs_follow_the_commanded_speeds(spawn_mock, fast_policy):
     a, b, c = np.array([0.0, 30.0, 5.0]), np.array([20.0, 30.0, 5.0]), np.array([0.0, 0.0, 5.0])
-    mission = DroneMission(1, (
-        home_item(),
-        item(1, MavCmd.NAV_TAKEOFF, z=5.0),
-        item(2, MavCmd.DO_CHANGE_SPEED, frame=MavFrame.MISSION, p1=1, p2=3.0, p3=-1),
-        item(3, MavCmd.NAV_WAYPOINT, en=a[:2], z=5.0),
-        item(4, MavCmd.DO_CHANGE_SPEED, frame=MavFrame.MISSION, p1=1, p2=1.5, p3=-1),
-        item(5, MavCmd.NAV_WAYPOINT, en=b[:2], z=5.0, p1=2.0),  # hold 2 s at B
-        item(6, MavCmd.DO_CHANGE_SPEED, frame=MavFrame.MISSION, p1=1, p2=4.0, p3=-1),
-        item(7, MavCmd.NAV_WAYPOINT, en=c[:2], z=5.0),
-    ))
+    mission = DroneMission(
+        1,
+        (
+            home_item(),
+            item(1, MavCmd.NAV_TAKEOFF, z=5.0),
+            item(2, MavCmd.DO_CHANGE_SPEED, frame=MavFrame.MISSION, p1=1, p2=3.0, p3=-1),
+            item(3, MavCmd.NAV_WAYPOINT, en=a[:2], z=5.0),
+            item(4, MavCmd.DO_CHANGE_SPEED, frame=MavFrame.MISSION, p1=1, p2=1.5, p3=-1),
+            item(5, MavCmd.NAV_WAYPOINT, en=b[:2], z=5.0, p1=2.0),  # hold 2 s at B
+            item(6, MavCmd.DO_CHANGE_SPEED, frame=MavFrame.MISSION, p1=1, p2=4.0, p3=-1),
+            item(7, MavCmd.NAV_WAYPOINT, en=c[:2], z=5.0),
+        ),
+    )
     mock, address = spawn_mock(MockConfig(home=HOME), SimClock(SPEEDUP))
     heartbeats = []
     with Fleet.connect([address], fast_policy) as fleet, fleet.recorder() as recorder:
@@ -120,12 +126,14 @@ def test_flown_legs_follow_the_commanded_speeds(spawn_mock, fast_policy):
         assert mock.streaming == {"GLOBAL_POSITION_INT", "MISSION_CURRENT"}
         fleet.arm()
         report = fleet.start()
-        wait_for(lambda: [e.seq for e in recorder.snapshot()[address].reached][-1:] == [7],
-                 60.0 / SPEEDUP + 2.0)
+        wait_for(
+            lambda: [e.seq for e in recorder.snapshot()[address].reached][-1:] == [7],
+            60.0 / SPEEDUP + 2.0,
+        )
     telemetry = recorder.snapshot()[address]
     assert report.resent == () and report.spread_s == 0.0
     assert [e.seq for e in telemetry.reached] == [1, 3, 5, 7]  # every nav item, in order
-    assert [e.seq for e in telemetry.current if e.seq] [:1] == [1]
+    assert [e.seq for e in telemetry.current if e.seq][:1] == [1]
     assert {1, 3, 5, 7} <= {e.seq for e in telemetry.current}
 
     t, p = enu_track(telemetry.positions)
@@ -149,10 +157,15 @@ def test_flown_legs_follow_the_commanded_speeds(spawn_mock, fast_policy):
 
     # positions on the legs: nothing strays from the polyline ground-above-A-B-C
     corners = [ground, above, a, b, c]
+
     def off_track(q):
-        return min(np.linalg.norm(q - (s + np.clip((q - s) @ (e - s) / ((e - s) @ (e - s)),
-                                                    0, 1) * (e - s)))
-                   for s, e in itertools.pairwise(corners))
+        return min(
+            np.linalg.norm(
+                q - (s + np.clip((q - s) @ (e - s) / ((e - s) @ (e - s)), 0, 1) * (e - s))
+            )
+            for s, e in itertools.pairwise(corners)
+        )
+
     assert max(off_track(q) for q in p[p[:, 2] > 0.01]) < 0.03  # 1e-7 deg ~ 1 cm steps
 
     # reported velocity at each midpoint is the commanded speed
@@ -170,8 +183,14 @@ def test_shared_clock_start_delays_and_clock_offsets(spawn_mock, fast_policy):
     clock = SimClock(speedup=speedup, epoch_utc=epoch_utc)
     delays, offsets = (0.0, 0.3, 0.6), (0.0, 0.4, -0.4)
     addresses = [
-        spawn_mock(MockConfig(system_id=k, home=HOME, imperfections=Imperfections(
-            start_delay_s=delay, clock_offset_s=offset)), clock)[1]
+        spawn_mock(
+            MockConfig(
+                system_id=k,
+                home=HOME,
+                imperfections=Imperfections(start_delay_s=delay, clock_offset_s=offset),
+            ),
+            clock,
+        )[1]
         for k, (delay, offset) in enumerate(zip(delays, offsets, strict=True), start=1)
     ]
     with Fleet.connect(addresses, fast_policy) as fleet, fleet.recorder() as recorder:
@@ -179,18 +198,35 @@ def test_shared_clock_start_delays_and_clock_offsets(spawn_mock, fast_policy):
         # to upload, arm, start and climb 3 m (2.2 s plus the start delay)
         barrier_s = math.ceil(clock.now() + 8.0)
         barrier = dt.datetime.fromtimestamp(epoch_utc + barrier_s, tz=dt.UTC)
-        fleet.upload([DroneMission(k, (
-            home_item(),
-            item(1, MavCmd.NAV_TAKEOFF, z=3.0),
-            item(2, MavCmd.NAV_DELAY, frame=MavFrame.MISSION, p1=-1, p2=barrier.hour,
-                 p3=barrier.minute, p4=barrier.second),
-            item(3, MavCmd.NAV_WAYPOINT, en=(0.0, 12.0), z=3.0),
-        )) for k in (1, 2, 3)])
+        fleet.upload(
+            [
+                DroneMission(
+                    k,
+                    (
+                        home_item(),
+                        item(1, MavCmd.NAV_TAKEOFF, z=3.0),
+                        item(
+                            2,
+                            MavCmd.NAV_DELAY,
+                            frame=MavFrame.MISSION,
+                            p1=-1,
+                            p2=barrier.hour,
+                            p3=barrier.minute,
+                            p4=barrier.second,
+                        ),
+                        item(3, MavCmd.NAV_WAYPOINT, en=(0.0, 12.0), z=3.0),
+                    ),
+                )
+                for k in (1, 2, 3)
+            ]
+        )
         fleet.request_position_streams(rate_hz=20.0)
         fleet.arm()
         report = fleet.start()
-        wait_for(lambda: all(v.reached and v.reached[-1].seq == 3
-                             for v in recorder.snapshot().values()), 20.0 / speedup + 2.0)
+        wait_for(
+            lambda: all(v.reached and v.reached[-1].seq == 3 for v in recorder.snapshot().values()),
+            20.0 / speedup + 2.0,
+        )
     tracks = [enu_track(recorder.snapshot()[a].positions) for a in addresses]
     up, north = np.array([0.0, 0.0, 3.0]), np.array([0.0, 12.0, 3.0])
     lift = [crossing_time(t, p, np.zeros(3), up) for t, p in tracks]
@@ -237,23 +273,29 @@ def test_arming_makes_the_current_position_the_home(spawn_mock, fast_policy):
     """Fly 10 m north and land there (the mock disarms on touchdown); arming again moves
     home, and seq 0 reads back as the new home."""
     mock, address = spawn_mock(MockConfig(home=HOME), SimClock(SPEEDUP))
-    mission = DroneMission(1, (
-        home_item(),
-        item(1, MavCmd.NAV_TAKEOFF, z=2.0),
-        item(2, MavCmd.NAV_WAYPOINT, en=(0.0, 10.0), z=2.0),
-        item(3, MavCmd.NAV_LAND),
-    ))
+    mission = DroneMission(
+        1,
+        (
+            home_item(),
+            item(1, MavCmd.NAV_TAKEOFF, z=2.0),
+            item(2, MavCmd.NAV_WAYPOINT, en=(0.0, 10.0), z=2.0),
+            item(3, MavCmd.NAV_LAND),
+        ),
+    )
     with Fleet.connect([address], fast_policy) as fleet, fleet.recorder() as recorder:
         fleet.upload([mission])
         fleet.arm()
         fleet.start()
-        wait_for(lambda: [e.seq for e in recorder.snapshot()[address].reached][-1:] == [3],
-                 20.0 / SPEEDUP + 2.0)
+        wait_for(
+            lambda: [e.seq for e in recorder.snapshot()[address].reached][-1:] == [3],
+            20.0 / SPEEDUP + 2.0,
+        )
         wait_for(lambda: not mock.armed, 1.0)
         fleet.arm()
         (home,) = download_mission(fleet.links[0], fast_policy)[:1]
-    east, north, up = pymap3d.geodetic2enu(home.x * 1e-7, home.y * 1e-7, home.z,
-                                           HOME.lat_deg, HOME.lon_deg, HOME.alt_m)
+    east, north, up = pymap3d.geodetic2enu(
+        home.x * 1e-7, home.y * 1e-7, home.z, HOME.lat_deg, HOME.lon_deg, HOME.alt_m
+    )
     assert (east, north, up) == pytest.approx((0.0, 10.0, 0.0), abs=0.02)
     assert (home.frame, home.command) == (MavFrame.GLOBAL, MavCmd.NAV_WAYPOINT)
     assert mock.home.lat_deg == pytest.approx(home.x * 1e-7, abs=1e-7)
@@ -261,11 +303,14 @@ def test_arming_makes_the_current_position_the_home(spawn_mock, fast_policy):
 
 def test_mission_set_current_chooses_where_mission_start_begins(spawn_mock, fast_policy):
     _, address = spawn_mock()
-    mission = DroneMission(1, (
-        home_item(),
-        item(1, MavCmd.NAV_TAKEOFF, z=2.0),
-        item(2, MavCmd.NAV_WAYPOINT, en=(0.0, 10.0), z=2.0),
-    ))
+    mission = DroneMission(
+        1,
+        (
+            home_item(),
+            item(1, MavCmd.NAV_TAKEOFF, z=2.0),
+            item(2, MavCmd.NAV_WAYPOINT, en=(0.0, 10.0), z=2.0),
+        ),
+    )
     with Fleet.connect([address], fast_policy) as fleet:
         link = fleet.links[0]
         fleet.upload([mission])
@@ -294,8 +339,9 @@ class IntervalDroppingLink(VehicleLink):
 
 def test_stream_request_falls_back_to_request_data_stream(spawn_mock):
     mock, address = spawn_mock()
-    policy = RetryPolicy(request_timeout_s=0.2, retries=1, heartbeat_timeout_s=3.0,
-                         gcs_heartbeat_interval_s=0.1)
+    policy = RetryPolicy(
+        request_timeout_s=0.2, retries=1, heartbeat_timeout_s=3.0, gcs_heartbeat_interval_s=0.1
+    )
     with IntervalDroppingLink(address, policy) as link:
         link.wait_heartbeat()
         assert mock.streaming == frozenset()
@@ -306,8 +352,10 @@ def test_stream_request_falls_back_to_request_data_stream(spawn_mock):
 
 def test_disarm_is_refused_in_the_air_unless_forced(spawn_mock, fast_policy):
     mock, address = spawn_mock(MockConfig(home=HOME), SimClock(SPEEDUP))
-    mission = DroneMission(1, (home_item(), item(1, MavCmd.NAV_TAKEOFF, z=2.0),
-                               item(2, MavCmd.NAV_LOITER_UNLIM, z=2.0)))
+    mission = DroneMission(
+        1,
+        (home_item(), item(1, MavCmd.NAV_TAKEOFF, z=2.0), item(2, MavCmd.NAV_LOITER_UNLIM, z=2.0)),
+    )
     with Fleet.connect([address], fast_policy) as fleet, fleet.recorder() as recorder:
         link = fleet.links[0]
         fleet.upload([mission])

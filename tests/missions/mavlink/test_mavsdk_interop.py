@@ -26,8 +26,20 @@ from missions.mavlink.upload import Verification, upload_and_verify
 
 from .conftest import HOME, free_udp_port, waypoint_mission
 
-FIELDS = ("seq", "frame", "command", "autocontinue", "param1", "param2", "param3", "param4",
-          "x", "y", "z", "mission_type")
+FIELDS = (
+    "seq",
+    "frame",
+    "command",
+    "autocontinue",
+    "param1",
+    "param2",
+    "param3",
+    "param4",
+    "x",
+    "y",
+    "z",
+    "mission_type",
+)
 logger = logging.getLogger("mavsdk")
 
 
@@ -35,8 +47,11 @@ logger = logging.getLogger("mavsdk")
 def mavsdk_to_logging() -> Iterator[None]:
     """MAVSDK's own log lines go to Python logging instead of stdout."""
     levels = [logging.DEBUG, logging.INFO, logging.WARNING, logging.ERROR]
-    log_subscribe(lambda level, message, _file, _line: (
-        logger.log(levels[int(level)], "%s", message), True)[1])
+    log_subscribe(
+        lambda level, message, _file, _line: (logger.log(levels[int(level)], "%s", message), True)[
+            1
+        ]
+    )
     yield
     log_unsubscribe()
 
@@ -44,30 +59,52 @@ def mavsdk_to_logging() -> Iterator[None]:
 def values(item) -> tuple:
     """The compared fields of either item type, NaN made comparable; ``current`` is left
     out: MAVSDK requires it on the first uploaded item, and it is vehicle state."""
+
     def norm(v):
         v = float(v) if not isinstance(v, int) else v
         return "nan" if isinstance(v, float) and math.isnan(v) else v
-    return tuple(norm(int(getattr(item, f)) if f in ("frame", "command", "mission_type")
-                      else getattr(item, f)) for f in FIELDS)
+
+    return tuple(
+        norm(
+            int(getattr(item, f)) if f in ("frame", "command", "mission_type") else getattr(item, f)
+        )
+        for f in FIELDS
+    )
 
 
 def to_raw(item: MissionItem, current: int) -> RawItem:
-    return RawItem(item.seq, int(item.frame), int(item.command), current, item.autocontinue,
-                   item.param1, item.param2, item.param3, item.param4, item.x, item.y, item.z,
-                   int(item.mission_type))
+    return RawItem(
+        item.seq,
+        int(item.frame),
+        int(item.command),
+        current,
+        item.autocontinue,
+        item.param1,
+        item.param2,
+        item.param3,
+        item.param4,
+        item.x,
+        item.y,
+        item.z,
+        int(item.mission_type),
+    )
 
 
 def home_first(mission_items):
     """The mission with seq 0 set to what ArduPilot reads back there (its home), so that
     an unchanged read-back is an exact equality."""
-    home = MissionItem(0, MavFrame.GLOBAL, MavCmd.NAV_WAYPOINT, x=round(HOME.lat_deg * 1e7),
-                       y=round(HOME.lon_deg * 1e7), z=HOME.alt_m)
+    home = MissionItem(
+        0,
+        MavFrame.GLOBAL,
+        MavCmd.NAV_WAYPOINT,
+        x=round(HOME.lat_deg * 1e7),
+        y=round(HOME.lon_deg * 1e7),
+        z=HOME.alt_m,
+    )
     return (home, *mission_items[1:])
 
 
-def test_mavsdk_ground_station_uploads_to_the_mock_and_reads_it_back(
-    spawn_mock, mavsdk_to_logging
-):
+def test_mavsdk_ground_station_uploads_to_the_mock_and_reads_it_back(spawn_mock, mavsdk_to_logging):
     mock, address = spawn_mock(MockConfig(home=HOME))
     port = int(address.rsplit(":", 1)[1])
     items = home_first(waypoint_mission(2, 12).items)
@@ -89,8 +126,9 @@ def test_mavsdk_ground_station_uploads_to_the_mock_and_reads_it_back(
 
 def test_our_client_uploads_to_mavsdk_mission_raw_server(mavsdk_to_logging):
     port = free_udp_port()
-    policy = RetryPolicy(request_timeout_s=0.3, retries=3, heartbeat_timeout_s=5.0,
-                         gcs_heartbeat_interval_s=0.1)
+    policy = RetryPolicy(
+        request_timeout_s=0.3, retries=3, heartbeat_timeout_s=5.0, gcs_heartbeat_interval_s=0.1
+    )
     mission = waypoint_mission(3, 12)
     incoming: list = []
     arrived = threading.Event()
@@ -98,13 +136,18 @@ def test_our_client_uploads_to_mavsdk_mission_raw_server(mavsdk_to_logging):
     sdk = Mavsdk(Configuration.create_with_component_type(ComponentType.AUTOPILOT))
     try:
         with VehicleLink(f"udpin:127.0.0.1:{port}", policy, name="mavsdk") as link:
-            link.add_listener(("MISSION_REQUEST", "MISSION_REQUEST_INT"),
-                              lambda msg: requests.append(msg.get_type()))
+            link.add_listener(
+                ("MISSION_REQUEST", "MISSION_REQUEST_INT"),
+                lambda msg: requests.append(msg.get_type()),
+            )
             sdk.add_any_connection(f"udpout://127.0.0.1:{port}")
             server = MissionRawServer(sdk.server_component())
             server.subscribe_incoming_mission(
-                lambda result, plan, _: (incoming.append((result, plan.mission_items)),
-                                         arrived.set()))
+                lambda result, plan, _: (
+                    incoming.append((result, plan.mission_items)),
+                    arrived.set(),
+                )
+            )
             link.wait_heartbeat()
             # MissionRawServer stores seq 0 verbatim and serves downloads: compare all
             report = upload_and_verify(link, mission, policy, Verification.ALL_ITEMS)

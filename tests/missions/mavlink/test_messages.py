@@ -31,7 +31,10 @@ items = st.builds(
     command=st.sampled_from(list(MavCmd)),
     current=st.integers(0, 1),
     autocontinue=st.integers(0, 1),
-    param1=floats, param2=floats, param3=floats, param4=floats,
+    param1=floats,
+    param2=floats,
+    param3=floats,
+    param4=floats,
     x=st.integers(-900_000_000, 900_000_000),
     y=st.integers(-1_800_000_000, 1_800_000_000),
     z=st.floats(-1000, 10000),
@@ -72,40 +75,52 @@ def test_payload_layout_matches_the_mavlink_definition(item):
         "<ffffiifHHBBBBBB", payload
     )
     assert (x, y, seq, cmd, ts, tc) == (item.x, item.y, item.seq, int(item.command), 7, 1)
-    assert (fr, cur, auto, mtype) == (int(item.frame), item.current, item.autocontinue,
-                                      int(item.mission_type))
-    for sent, raw in zip((item.param1, item.param2, item.param3, item.param4, item.z),
-                         (p1, p2, p3, p4, z), strict=True):
+    assert (fr, cur, auto, mtype) == (
+        int(item.frame),
+        item.current,
+        item.autocontinue,
+        int(item.mission_type),
+    )
+    for sent, raw in zip(
+        (item.param1, item.param2, item.param3, item.param4, item.z),
+        (p1, p2, p3, p4, z),
+        strict=True,
+    ):
         assert same(float32(sent), raw)
 
 
 def test_float_params_are_compared_as_float32():
-    item = MissionItem(3, MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_WAYPOINT, param1=0.1,
-                       z=12.3456789)
+    item = MissionItem(
+        3, MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_WAYPOINT, param1=0.1, z=12.3456789
+    )
     assert as_sent(item).param1 != 0.1  # 0.1 has no exact float32
     assert item_difference(item, as_sent(item)) is None
     assert item_difference(item, as_sent(item).with_seq(3)) is None
-    nudged = MissionItem(3, MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_WAYPOINT, param1=0.1,
-                         z=12.35)
+    nudged = MissionItem(
+        3, MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_WAYPOINT, param1=0.1, z=12.35
+    )
     assert item_difference(item, nudged) == "z"
 
 
 def test_global_frames_compare_equal_in_either_spelling_current_is_state():
     sent = MissionItem(1, MavFrame.GLOBAL_RELATIVE_ALT_INT, MavCmd.NAV_WAYPOINT, x=1, y=2)
-    as_ardupilot_returns = MissionItem(1, MavFrame.GLOBAL_RELATIVE_ALT, MavCmd.NAV_WAYPOINT,
-                                       current=1, x=1, y=2)
+    as_ardupilot_returns = MissionItem(
+        1, MavFrame.GLOBAL_RELATIVE_ALT, MavCmd.NAV_WAYPOINT, current=1, x=1, y=2
+    )
     assert item_difference(sent, as_ardupilot_returns) is None
     amsl = MissionItem(1, MavFrame.GLOBAL, MavCmd.NAV_WAYPOINT, x=1, y=2)
     assert item_difference(sent, amsl) == "frame"
     assert item_difference(sent, MissionItem(1, sent.frame, MavCmd.NAV_LAND, x=1, y=2)) == (
-        "command")
+        "command"
+    )
     assert item_difference(sent, MissionItem(1, sent.frame, sent.command, x=1, y=3)) == "y"
 
 
 def test_float_mission_item_carries_degrees():
     """The legacy MISSION_ITEM sends degrees as float32, so it loses some position."""
-    item = MissionItem(2, MavFrame.GLOBAL_RELATIVE_ALT, MavCmd.NAV_WAYPOINT,
-                       x=473977421, y=85455941, z=10.0)
+    item = MissionItem(
+        2, MavFrame.GLOBAL_RELATIVE_ALT, MavCmd.NAV_WAYPOINT, x=473977421, y=85455941, z=10.0
+    )
     name, fields = mission_item_float(item, TARGET)
     assert name == "MISSION_ITEM" and fields["x"] == 47.3977421
     decoded = dialect.MAVLink(None).decode(bytearray(wire_bytes((name, fields))))

@@ -23,9 +23,23 @@ FLYCRANE = [shutil.which("flycrane", path=os.path.dirname(sys.executable)) or "f
 def test_mock_autopilot_process_answers_a_heartbeat_waiting_client():
     port = free_udp_port()
     process = subprocess.Popen(
-        [*FLYCRANE, "mock-autopilot", "--port", str(port), "--system-id", "7", "--speedup", "4",
-         "--home", "46.5", "6.6", "400"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        [
+            *FLYCRANE,
+            "mock-autopilot",
+            "--port",
+            str(port),
+            "--system-id",
+            "7",
+            "--speedup",
+            "4",
+            "--home",
+            "46.5",
+            "6.6",
+            "400",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
     try:
@@ -49,8 +63,12 @@ def test_mock_autopilot_process_answers_a_heartbeat_waiting_client():
     ],
 )
 def test_bad_arguments_exit_non_zero_with_a_message(args, message):
-    done = subprocess.run([*FLYCRANE, "mock-autopilot", *args, "--duration", "1"],
-                          capture_output=True, text=True, timeout=30)
+    done = subprocess.run(
+        [*FLYCRANE, "mock-autopilot", *args, "--duration", "1"],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert done.returncode == 2
     assert message in done.stderr
     assert "Traceback" not in done.stderr

@@ -17,8 +17,13 @@ from .test_flight import home_item, item
 speeds = st.floats(0.0, 8.0)
 
 
-@given(length=st.floats(0.01, 200.0), v_in=speeds, cruise=st.floats(0.1, 8.0),
-       exit_fraction=st.floats(0.0, 1.0), accel=st.floats(0.2, 5.0))
+@given(
+    length=st.floats(0.01, 200.0),
+    v_in=speeds,
+    cruise=st.floats(0.1, 8.0),
+    exit_fraction=st.floats(0.0, 1.0),
+    accel=st.floats(0.2, 5.0),
+)
 def test_speed_profile_is_a_bounded_acceleration_ride_along_the_whole_leg(
     length, v_in, cruise, exit_fraction, accel
 ):
@@ -86,10 +91,17 @@ def test_speed_scale_and_start_delay():
 
 
 def test_position_noise_has_the_configured_spread():
-    flight = KinematicFlight(HOME, Dynamics(), Imperfections(position_noise_m=0.5, seed=4),
-                             epoch_utc=0.0)
-    samples = np.array([pymap3d.geodetic2enu(*flight.reported_geodetic(), HOME.lat_deg,
-                                             HOME.lon_deg, HOME.alt_m) for _ in range(4000)])
+    flight = KinematicFlight(
+        HOME, Dynamics(), Imperfections(position_noise_m=0.5, seed=4), epoch_utc=0.0
+    )
+    samples = np.array(
+        [
+            pymap3d.geodetic2enu(
+                *flight.reported_geodetic(), HOME.lat_deg, HOME.lon_deg, HOME.alt_m
+            )
+            for _ in range(4000)
+        ]
+    )
     assert samples.std(axis=0) == pytest.approx([0.5, 0.5, 0.5], rel=0.06)
     assert np.abs(samples.mean(axis=0)).max() < 0.05
     assert np.array_equal(flight.position, np.zeros(3))  # the state itself is not noisy
@@ -119,7 +131,10 @@ def test_loiter_unlimited_holds_and_never_completes():
     t, p, speed, events = fly(Imperfections(), items, limit=60.0)
     assert t[-1] >= 60.0  # still flying when the test stops it
     assert [(kind, seq) for _, kind, seq in events] == [
-        ("current", 1), ("reached", 1), ("current", 2)]
+        ("current", 1),
+        ("reached", 1),
+        ("current", 2),
+    ]
     assert p[-1] == pytest.approx([5.0, 0.0, 3.0], abs=0.01)  # 1e-7 degree steps
     assert speed[-1] == 0.0
 
@@ -127,6 +142,7 @@ def test_loiter_unlimited_holds_and_never_completes():
 def test_ground_speeds_below_the_minimum_are_ignored_but_not_vertical_ones():
     """ArduCopter's AC_WPNav::set_speed_NE ignores ground speeds below WPNAV_WP_SPEED_MIN
     (20 cm/s up to 4.5); climb and descent speeds have no such floor."""
+
     def legs(ground: float, climb: float):
         return (
             home_item(),

@@ -17,21 +17,38 @@ from .conftest import free_udp_port
     ("address", "spec", "device"),
     [
         ("udpin:0.0.0.0:14550", ConnectionSpec("udpin", "0.0.0.0", 14550), "udpin:0.0.0.0:14550"),
-        ("udp:127.0.0.1:14550", ConnectionSpec("udpin", "127.0.0.1", 14550),
-         "udpin:127.0.0.1:14550"),
-        ("udpout:10.0.0.2:14555", ConnectionSpec("udpout", "10.0.0.2", 14555),
-         "udpout:10.0.0.2:14555"),
-        ("udpin://127.0.0.1:5000", ConnectionSpec("udpin", "127.0.0.1", 5000),
-         "udpin:127.0.0.1:5000"),
+        (
+            "udp:127.0.0.1:14550",
+            ConnectionSpec("udpin", "127.0.0.1", 14550),
+            "udpin:127.0.0.1:14550",
+        ),
+        (
+            "udpout:10.0.0.2:14555",
+            ConnectionSpec("udpout", "10.0.0.2", 14555),
+            "udpout:10.0.0.2:14555",
+        ),
+        (
+            "udpin://127.0.0.1:5000",
+            ConnectionSpec("udpin", "127.0.0.1", 5000),
+            "udpin:127.0.0.1:5000",
+        ),
         ("tcp:localhost:5760", ConnectionSpec("tcp", "localhost", 5760), "tcp:localhost:5760"),
         ("tcpin:0.0.0.0:5760", ConnectionSpec("tcpin", "0.0.0.0", 5760), "tcpin:0.0.0.0:5760"),
-        ("/dev/ttyUSB0,115200", ConnectionSpec("serial", device="/dev/ttyUSB0", baud=115200),
-         "/dev/ttyUSB0"),
-        ("serial:/dev/ttyACM0:57600", ConnectionSpec("serial", device="/dev/ttyACM0"),
-         "/dev/ttyACM0"),
-        ("/dev/serial/by-id/usb-ArduPilot", ConnectionSpec("serial",
-                                                           device="/dev/serial/by-id/usb-ArduPilot"),
-         "/dev/serial/by-id/usb-ArduPilot"),
+        (
+            "/dev/ttyUSB0,115200",
+            ConnectionSpec("serial", device="/dev/ttyUSB0", baud=115200),
+            "/dev/ttyUSB0",
+        ),
+        (
+            "serial:/dev/ttyACM0:57600",
+            ConnectionSpec("serial", device="/dev/ttyACM0"),
+            "/dev/ttyACM0",
+        ),
+        (
+            "/dev/serial/by-id/usb-ArduPilot",
+            ConnectionSpec("serial", device="/dev/serial/by-id/usb-ArduPilot"),
+            "/dev/serial/by-id/usb-ArduPilot",
+        ),
     ],
 )
 def test_connection_strings(address, spec, device):
@@ -58,5 +75,8 @@ def test_silent_port_times_out_at_heartbeat_within_the_stated_time():
             link.wait_heartbeat()
         elapsed = time.monotonic() - started
     assert (error.value.vehicle, error.value.stage, error.value.timeout_s) == (
-        "ghost", "HEARTBEAT", 0.5)
+        "ghost",
+        "HEARTBEAT",
+        0.5,
+    )
     assert 0.5 <= elapsed < 0.8

@@ -23,14 +23,14 @@ from .conftest import HOME, waypoint_mission
 
 def comparable(items):
     """Items as plain tuples with NaN made comparable (dataclass equality has NaN != NaN)."""
+
     def norm(v):
         return "nan" if isinstance(v, float) and math.isnan(v) else v
+
     return [tuple(norm(getattr(i, f)) for f in i.__dataclass_fields__) for i in items]
 
 
-def test_three_vehicles_upload_concurrently_and_hold_exactly_the_missions(
-    spawn_mock, fast_policy
-):
+def test_three_vehicles_upload_concurrently_and_hold_exactly_the_missions(spawn_mock, fast_policy):
     clock = SimClock(speedup=5.0)
     spawned = [spawn_mock(MockConfig(system_id=k, home=HOME), clock) for k in (1, 2, 3)]
     missions = [waypoint_mission(drone, 40) for drone in (1, 2, 3)]
@@ -44,19 +44,23 @@ def test_three_vehicles_upload_concurrently_and_hold_exactly_the_missions(
         assert comparable(stored[1:]) == comparable(as_sent(i) for i in mission.items[1:])
         # seq 0 reads back as the vehicle's home (ArduPilot), not as uploaded
         assert (report.home.frame, report.home.command) == (MavFrame.GLOBAL, MavCmd.NAV_WAYPOINT)
-        assert (report.home.x, report.home.y) == (round(HOME.lat_deg * 1e7),
-                                                  round(HOME.lon_deg * 1e7))
+        assert (report.home.x, report.home.y) == (
+            round(HOME.lat_deg * 1e7),
+            round(HOME.lon_deg * 1e7),
+        )
         assert report.home.z == pytest.approx(HOME.alt_m)
 
 
-@pytest.mark.parametrize(("request_int", "expected"),
-                         [(False, "MISSION_REQUEST"), (True, "MISSION_REQUEST_INT")])
+@pytest.mark.parametrize(
+    ("request_int", "expected"), [(False, "MISSION_REQUEST"), (True, "MISSION_REQUEST_INT")]
+)
 def test_both_request_kinds_are_answered(spawn_mock, fast_policy, request_int, expected):
     _, address = spawn_mock(MockConfig(home=HOME, request_int=request_int))
     seen = []
     with VehicleLink(address, fast_policy) as link:
-        link.add_listener(("MISSION_REQUEST", "MISSION_REQUEST_INT"),
-                          lambda msg: seen.append(msg.get_type()))
+        link.add_listener(
+            ("MISSION_REQUEST", "MISSION_REQUEST_INT"), lambda msg: seen.append(msg.get_type())
+        )
         link.wait_heartbeat()
         report = upload_and_verify(link, waypoint_mission(1, 5), fast_policy)
     assert report.item_count == 7
@@ -125,7 +129,11 @@ def test_verification_names_the_first_difference():
     with pytest.raises(MissionVerificationError) as error:
         verify_mission("v", sent, back[:-1], Verification.ARDUPILOT)
     assert (error.value.seq, error.value.field, error.value.expected, error.value.actual) == (
-        None, "count", 5, 4)
+        None,
+        "count",
+        5,
+        4,
+    )
 
 
 def test_ardupilot_verification_accepts_what_arducopter_stores():
