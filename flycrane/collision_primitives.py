@@ -14,7 +14,10 @@ upper bound. "Separated" is returned only when the lower bound exceeds the margi
 upper bound falls to the margin, the simplex encloses the origin, the bounds meet within
 EPS_RELATIVE, or the iterations run out, the answer is "touching". So the test never calls
 touching shapes free; it calls separated shapes touching only within a relative 1e-10 of
-the margin (or within CONTACT_TOLERANCE of contact for margin-free pairs).
+the margin (or within CONTACT_TOLERANCE of contact for margin-free pairs). Degenerate
+simplices (coincident or collinear points) take their lower-dimensional faces; the kernels
+use numpy's error model, so no arithmetic raises, and a NaN fails every bound test and ends
+as "touching".
 
 Shapes are rows of tables (centres (n, 3), rotations (n, 3, 3), sizes (n, 3), vertices
 (V, 3)), world frame, passed with their kind and row index (indexing whole tables, not
@@ -111,17 +114,17 @@ def bounds(kind, row, centers, rots, sizes, verts, margin, out, out_row) -> None
         out[out_row, 1, a] = high + margin
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _dot(a, b) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _squared_gap(a, b) -> float:
     return (b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _triangle(a, b, c, v) -> int:
     """Closest point v of triangle abc to the origin; returns the kept vertices as bits
     (1: a, 2: b, 4: c). Ericson 5.1.5 with p = 0; a degenerate triangle falls back to its
@@ -140,7 +143,7 @@ def _triangle(a, b, c, v) -> int:
         return 2
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-        t = d1 / (d1 - d3)
+        t = d1 / (d1 - d3) if d1 > d3 else 0.0  # d1 = d3 = 0: a and b coincide
         v[0], v[1], v[2] = a[0] + t * ab0, a[1] + t * ab1, a[2] + t * ab2
         return 3
     d5 = -(ab0 * c[0] + ab1 * c[1] + ab2 * c[2])
@@ -150,12 +153,13 @@ def _triangle(a, b, c, v) -> int:
         return 4
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-        t = d2 / (d2 - d6)
+        t = d2 / (d2 - d6) if d2 > d6 else 0.0
         v[0], v[1], v[2] = a[0] + t * ac0, a[1] + t * ac1, a[2] + t * ac2
         return 5
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
-        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        span = (d4 - d3) + (d5 - d6)
+        t = (d4 - d3) / span if span > 0.0 else 0.0
         v[0] = b[0] + t * (c[0] - b[0])
         v[1] = b[1] + t * (c[1] - b[1])
         v[2] = b[2] + t * (c[2] - b[2])
@@ -181,7 +185,7 @@ def _triangle(a, b, c, v) -> int:
     return 7
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _closest_on_simplex(simplex, n, v, scratch, chosen) -> int:
     """Closest point v of the simplex (n points) to the origin; the simplex is reduced to
     the smallest face holding it. Returns the new size, 0 if the origin is inside."""
@@ -231,7 +235,7 @@ def _closest_on_simplex(simplex, n, v, scratch, chosen) -> int:
     return _keep(simplex, chosen, kept_bits, i, j, k)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _keep(simplex, chosen, bits, i, j, k) -> int:
     """Compact simplex points i, j, k selected by bits (1, 2, 4) to the front (through
     ``chosen``, 3 x 3 scratch, as the indices may cross)."""
@@ -245,7 +249,7 @@ def _keep(simplex, chosen, bits, i, j, k) -> int:
     return n
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def separated(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) -> bool:
     """True iff the cores are certainly more than ``margin`` apart (module docstring).
     ``work``: (GJK_WORK, 3) scratch, so that the test allocates nothing."""
@@ -276,7 +280,7 @@ def separated(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) 
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def point_distance_squared(point, kind, row, centers, rots, sizes) -> float:
     """Squared distance from a point (3,) to the core of shape ``row`` of a table, for a
     point, a segment, a solid box or a solid cylinder (exact); -1 for other kinds."""
@@ -312,7 +316,7 @@ def point_distance_squared(point, kind, row, centers, rots, sizes) -> float:
     return radial * radial + axial * axial
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def shapes_touch(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) -> bool:
     """Whether the cores of shape ``ra`` of table a and shape ``rb`` of table b (each table:
     centres, rotations, sizes, vertices) are within ``margin``: closed forms for a point
