@@ -32,8 +32,9 @@ from missions.mavlink.errors import (
 from missions.mavlink.faults import FaultInjection
 from missions.mavlink.fleet import Fleet, upload_to_vehicles
 from missions.mavlink.mock_autopilot import MockAutopilot, MockConfig
-from missions.mavlink.mock_flight import Dynamics, Geodetic, Imperfections, SimClock
+from missions.mavlink.mock_flight import Dynamics, Geodetic, Imperfections
 from missions.mavlink.policy import RetryPolicy
+from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.telemetry import TelemetryRecorder, VehicleTelemetry
 from missions.mavlink.transport import VehicleLink
 from missions.mavlink.upload import UploadReport, Verification, upload_and_verify

@@ -3,10 +3,11 @@
 Not a flight dynamics model: a point that follows the mission's legs with a speed profile,
 enough to check timing and geometry of multi-drone missions.
 
-- **Time.** :class:`SimClock` runs ``speedup`` times faster than the monotonic clock; mocks
-  that share one clock share one epoch, so their timestamps (``time_boot_ms``) compare
-  directly. UTC for NAV_DELAY is ``epoch_utc`` plus simulated time (plus a per-vehicle
-  offset, to imitate vehicles whose clocks disagree, design.md section 9).
+- **Time.** The mock autopilot steps the flight on a shared
+  :class:`~missions.mavlink.sim_clock.SimClock`; mocks that share one clock share one epoch,
+  so their timestamps (``time_boot_ms``) compare directly. UTC for NAV_DELAY is
+  ``epoch_utc`` plus simulated time (plus a per-vehicle offset, to imitate vehicles whose
+  clocks disagree, design.md section 9).
 - **Space.** Positions are local ENU metres about a fixed origin (the configured start
   position); geodetic <-> ENU goes through pymap3d.
 - **Commands.** Altitudes are flown as ArduPilot stores them, in whole centimetres
@@ -37,9 +38,8 @@ from __future__ import annotations
 
 import datetime as dt
 import math
-import time
 from collections.abc import Generator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pymap3d
@@ -73,26 +73,6 @@ def _positive(owner: str, **values: float) -> None:
     problems = [FieldProblem(k, f"must be > 0, got {v}") for k, v in values.items() if not v > 0]
     if problems:
         raise InputError(problems, source=owner)
-
-
-@dataclass(frozen=True)
-class SimClock:
-    """Simulated time: ``speedup`` times the monotonic clock since ``epoch_monotonic`` [s]."""
-
-    speedup: float = 1.0
-    epoch_monotonic: float = field(default_factory=time.monotonic)
-    epoch_utc: float = field(default_factory=time.time)  #: POSIX time at the epoch [s]
-
-    def __post_init__(self) -> None:
-        _positive("SimClock", speedup=self.speedup)
-
-    def now(self) -> float:
-        """Simulated seconds since the epoch."""
-        return (time.monotonic() - self.epoch_monotonic) * self.speedup
-
-    def real_seconds(self, sim_seconds: float) -> float:
-        """Wall-clock duration of ``sim_seconds`` of simulated time [s]."""
-        return sim_seconds / self.speedup
 
 
 @dataclass(frozen=True)
@@ -264,7 +244,7 @@ class KinematicFlight:
     dynamics, imperfections
         See :class:`Dynamics`, :class:`Imperfections`.
     epoch_utc : float
-        POSIX time [s] at simulated time 0 (:attr:`SimClock.epoch_utc`).
+        POSIX time [s] at simulated time 0 (:attr:`~missions.mavlink.sim_clock.SimClock.epoch_utc`).
     """
 
     def __init__(

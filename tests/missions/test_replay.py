@@ -15,20 +15,20 @@ Simulated time: the mocks share one :class:`SimClock` at :data:`SPEEDUP`, so a ~
 from the shared epoch, so the three streams compare directly. A speed-up also multiplies
 the wall-clock latency of the MISSION_START (a 15 ms scheduling hiccup on a busy core is
 0.15 s simulated, more than this plan tolerates); a real link delivers it within a
-millisecond. So the clock is held still while the start goes out (:class:`HoldableClock`):
+millisecond. So the clock is held still while the start goes out (``SimClock.held``):
 the three vehicles start at one simulated instant, and start offsets happen only where a
-test imposes them. The slow soak variant flies at x1 without the hold.
+test imposes them. The mocks step in lock step on that clock, so a loaded machine slows the
+simulation down instead of moving the drones apart. The slow soak variant flies at x1
+without the hold.
 """
 
 from __future__ import annotations
 
 import json
 import re
-import threading
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -43,7 +43,8 @@ from missions.formats import mission_from_json
 from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
 from missions.items import DroneMission, MavCmd
 from missions.mavlink import Fleet, Imperfections, MockAutopilot, MockConfig, RetryPolicy
-from missions.mavlink.mock_flight import Geodetic, SimClock
+from missions.mavlink.mock_flight import Geodetic
+from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.telemetry import VehicleTelemetry
 from missions.pipeline import run_task
 from missions.task import ResolvedTask, TaskSpec, resolve_task
@@ -53,7 +54,7 @@ from missions.waypoints import planned_configurations
 from .mavlink.conftest import free_udp_port, no_leaked_threads  # noqa: F401 (autouse fixture)
 
 SPEEDUP = 10.0
-#: GLOBAL_POSITION_INT at every step of the mocks (sim_step_s = 0.02 s): the most samples
+#: GLOBAL_POSITION_INT at every step of the mocks (the clock's step, 0.02 s): the most samples
 #: for the noise test, and one per step times MISSION_ITEM_REACHED to a step.
 STREAM_HZ = 50.0
 STEP_S = 1.0 / STREAM_HZ
@@ -80,42 +81,6 @@ PLATFORM_TOLERANCE_M = 0.15
 #: velocity, the position offset fitted as a local line over this window [s]
 #: (:func:`fused_positions`).
 FUSION_WINDOW_S = 4.0
-
-
-# --- a clock the test can hold still --------------------------------------------------
-
-
-class _Hold:
-    def __init__(self) -> None:
-        self.lock = threading.Lock()
-        self.at: float | None = None  # simulated time while held [s]
-        self.total = 0.0  # wall time spent held so far [s]
-
-
-@dataclass(frozen=True)
-class HoldableClock(SimClock):
-    """A :class:`SimClock` that stands still inside :meth:`held` and then runs on from
-    where it stopped: messages the mocks handle meanwhile all happen at one instant."""
-
-    _hold: _Hold = field(default_factory=_Hold, repr=False, compare=False)
-
-    def now(self) -> float:
-        with self._hold.lock:
-            if self._hold.at is not None:
-                return self._hold.at
-            return (time.monotonic() - self.epoch_monotonic - self._hold.total) * self.speedup
-
-    @contextmanager
-    def held(self) -> Iterator[float]:
-        with self._hold.lock:
-            since = time.monotonic()
-            self._hold.at = (since - self.epoch_monotonic - self._hold.total) * self.speedup
-        try:
-            yield self._hold.at
-        finally:
-            with self._hold.lock:
-                self._hold.total += time.monotonic() - since
-                self._hold.at = None
 
 
 # --- the exported task ---------------------------------------------------------------
@@ -192,7 +157,7 @@ def fly(
 ) -> Flight:
     """Three mocks on loopback, one shared clock: upload, stream, arm, one MISSION_START,
     record until every drone reports its last timed waypoint reached."""
-    clock = HoldableClock(speedup=speedup)
+    clock = SimClock(speedup=speedup)
     mocks: list[MockAutopilot] = []
     addresses, names = [], []
     try:

@@ -13,7 +13,7 @@ from missions.mavlink.errors import FleetError, MissionTransferError, MissionVer
 from missions.mavlink.fleet import Fleet, upload_to_vehicles
 from missions.mavlink.messages import ardupilot_readback, as_sent, float32
 from missions.mavlink.mock_autopilot import MockConfig
-from missions.mavlink.mock_flight import SimClock
+from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.transfer import download_mission
 from missions.mavlink.transport import VehicleLink
 from missions.mavlink.upload import Verification, upload_and_verify, verify_mission
