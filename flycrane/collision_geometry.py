@@ -63,8 +63,9 @@ def body_from_shape(
     return Body(name, geometry, center, rotation, center + rotation @ offset, half)
 
 
-def platform_body(system: CableSystem, thickness: float) -> Body:
-    """The platform as a thin prism through the convex hull of the points B'_i (in z')."""
+def platform_prism(system: CableSystem, thickness: float) -> tuple[NDArray, NDArray]:
+    """The platform as a thin prism through the convex hull of the points B'_i (in z'):
+    vertices (2 n, 3) in the platform frame [m] and triangles (F, 3) indexing them."""
     points = np.unique(np.round(system.platform_points, 12), axis=0)
     centroid = points.mean(axis=0)
     angle = np.arctan2(points[:, 1] - centroid[1], points[:, 0] - centroid[0])
@@ -77,10 +78,16 @@ def platform_body(system: CableSystem, thickness: float) -> Body:
     for i in range(n):
         j = (i + 1) % n
         faces += [(i, n + i, n + j), (i, n + j, j)]
+    return vertices, np.array(faces)
+
+
+def platform_body(system: CableSystem, thickness: float) -> Body:
+    """The platform's collision body (:func:`platform_prism`)."""
+    vertices, faces = platform_prism(system, thickness)
     low, high = vertices.min(axis=0), vertices.max(axis=0)
     return Body(
         "platform",
-        _bvh(vertices, np.array(faces)),
+        _bvh(vertices, faces),
         np.zeros(3),
         np.eye(3),
         (low + high) / 2,

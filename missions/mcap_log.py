@@ -43,7 +43,7 @@ from missions.formats import mission_json
 from missions.geodesy import geodetic_from_enu
 from missions.items import DroneMission
 from missions.options import MissionOptions
-from missions.tracks import Track
+from missions.tracks import Track, samples_at_rate
 
 GREY, ORANGE, BLUE, RED = (
     (0.6, 0.6, 0.6, 0.5),
@@ -156,8 +156,7 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
     """Write the log (module docstring); returns its path."""
     path = Path(path)
     track, start = inputs.track, inputs.start_ns
-    samples = np.unique(np.searchsorted(track.time, np.arange(0.0, track.duration, 1 / rate)))
-    samples = np.union1d(samples, [len(track.time) - 1])
+    samples = samples_at_rate(track.time, rate)
     messages: list[tuple[int, str, bytes]] = []
     stamp_of = lambda t: start + round(float(t) * 1e9)  # noqa: E731
     messages.append((start, "/scene", _static_update(inputs.scene, start).SerializeToString()))

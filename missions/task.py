@@ -80,6 +80,27 @@ def load_task(path: str | Path) -> tuple[TaskSpec, Path]:
     return task_from_dict(data, str(path)), path.parent
 
 
+def task_specs(
+    task: TaskSpec, base_dir: Path | None = None
+) -> tuple[SystemSpec, SceneSpec, Path | None]:
+    """The task's system and scene with presets loaded, and the directory its scene's mesh
+    files are relative to.
+
+    Raises
+    ------
+    InputError
+        Unknown system or scene preset (field ``system`` or ``scene``).
+    """
+    system = system_preset(task.system) if isinstance(task.system, str) else task.system
+    if not isinstance(task.scene, str):
+        return system, task.scene, base_dir
+    try:
+        scene, scene_dir = load_scene(task.scene)
+    except InputError as error:
+        raise InputError([FieldProblem("scene", p.reason) for p in error.problems]) from None
+    return system, scene, scene_dir
+
+
 def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
     """Build the problem and check start and goal (every error names its field).
 
@@ -90,14 +111,7 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
     InvalidConfigurationError
         Start or goal infeasible, out of bounds or in collision (``what`` says which).
     """
-    system = system_preset(task.system) if isinstance(task.system, str) else task.system
-    if isinstance(task.scene, str):
-        try:
-            scene, scene_dir = load_scene(task.scene)
-        except InputError as error:
-            raise InputError([FieldProblem("scene", p.reason) for p in error.problems]) from None
-    else:
-        scene, scene_dir = task.scene, base_dir
+    system, scene, scene_dir = task_specs(task, base_dir)
     problem = PlanningProblem.from_scene(scene, system, scene_dir)
     ends = []
     ends_given = (("start", task.start, scene.start), ("goal", task.goal, scene.goal))
