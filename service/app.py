@@ -16,7 +16,7 @@ from fastapi import FastAPI
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from flycrane.execution import local_executor
-from service.api.routes import health, presets, statics, tasks
+from service.api.routes import health, presets, statics, tasks, view
 from service.deps import ServiceState
 from service.errors import install_error_handlers
 from service.jobs import JobManager
@@ -106,7 +106,7 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         lifespan=lifespan,
     )
     install_error_handlers(app)
-    for module in (tasks, statics, presets, health):
+    for module in (tasks, view, statics, presets, health):
         app.include_router(module.router)
     app.add_middleware(BodySizeLimit, limit=settings.max_request_bytes)
     return app

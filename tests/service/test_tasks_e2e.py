@@ -70,7 +70,7 @@ def test_rescue_is_planned_and_every_artifact_is_served(done, tmp_path):
     topics = {channel.topic for channel in reader.get_summary().channels.values()}
     assert {"/scene", "/tf", "/drone1/fix", "/annotations/tensions"} <= topics
     bundle = zipfile.ZipFile(io.BytesIO(client.get(f"/v1/tasks/{task['id']}/bundle.zip").content))
-    assert set(bundle.namelist()) == expected - {"bundle.zip"}
+    assert set(bundle.namelist()) == expected - {"bundle.zip"} | {"view.html"}
     assert client.get(f"/v1/tasks/{task['id']}/artifacts/..%2Fflycrane.db").status_code == 404
 
 

@@ -341,4 +341,5 @@ window.flycraneViewer = {
   platformPosition: () => plannedCrane.platform.position.toArray(),
   dronePositions: () => plannedCrane.drones.map((d) => d.position.toArray()),
   flownPlatformVisible: () => (flownCrane ? flownCrane.group.visible && flownCrane.platform.visible : false),
+  flownPlatformPosition: () => (flownCrane ? flownCrane.platform.position.toArray() : null),
 };

@@ -15,6 +15,7 @@ from fastapi.responses import FileResponse, JSONResponse
 from flycrane.errors import FieldProblem, InputError
 from flycrane.planning.validity import InvalidConfigurationError
 from missions.task import TaskSpec, resolve_task
+from service.api.routes.view import bundle_view
 from service.deps import ServiceState, get_state, require_token
 from service.errors import (
     ArtifactNotFoundError,
@@ -148,7 +149,7 @@ def get_artifact(task_id: str, name: str, state: ServiceState = Depends(get_stat
 
 @router.get("/{task_id}/bundle.zip")
 def get_bundle(task_id: str, state: ServiceState = Depends(get_state)) -> Response:
-    """Every artifact of a task in one zip."""
+    """Every artifact of a task in one zip, with view.html, the viewer page that opens offline."""
     record = _record(state, task_id)
     files = (record.result or {}).get("artifacts", {})
     if not files:
@@ -157,6 +158,8 @@ def get_bundle(task_id: str, state: ServiceState = Depends(get_state)) -> Respon
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
         for name in sorted(set(files.values())):
             archive.write(_artifact_path(state, record, name), arcname=name)
+        if record.status is TaskStatus.DONE:  # the viewer, standalone (docs/viewer.md)
+            archive.writestr("view.html", bundle_view(state, record))
     return Response(
         buffer.getvalue(),
         media_type="application/zip",
