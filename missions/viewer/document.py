@@ -115,8 +115,8 @@ def frames_document(
     point, drone), tensions with their ranges, thrusts and worst cases, cost.
 
     ``drones`` (F, 3, 3) are where the cables end: the kinematics' for a plan, the measured
-    ones for a flight. Rows not ``valid`` (no reconstructed pose) get None for the platform
-    pose, cables and statics.
+    ones for a flight. Frames not ``valid`` (no reconstructed pose) have None for the
+    platform pose, the cables and the statics.
     """
     valid = np.ones(len(time), bool) if valid is None else valid
     b = platform_points_from_configuration(system, q)
@@ -124,9 +124,8 @@ def frames_document(
     statics = annotate(system, time, q)
 
     def masked(values: NDArray, decimals: int) -> list:
-        values = np.array(values, dtype=float)
-        values[~valid] = np.nan
-        return _plain(values, decimals)
+        rows = _plain(values, decimals)
+        return [row if ok else None for row, ok in zip(rows, valid, strict=True)]
 
     return {
         "time": _plain(time, POSITION_DECIMALS),

@@ -194,6 +194,22 @@ def test_flown_drones_shifted_carry_the_platform_shifted(planned, tmp_path):
     assert any(f["label"] == "flown" for f in document["facts"])
 
 
+def test_flown_drones_no_cables_can_join_leave_the_platform_out(planned, tmp_path):
+    """Drones 3 times as far apart as the plan's: no pose meets the six 2 m cables there."""
+    out, tracks, _ = planned
+    shutil.copytree(out, tmp_path, dirs_exist_ok=True)
+    drones = np.array(tracks["drones_enu"][:2])
+    centroid = drones[1].mean(axis=0)
+    drones[1] = centroid + 3.0 * (drones[1] - centroid)
+    flown = {"source": "test", "time": [0.0, 1.0], "drones_enu": drones.tolist()}
+    (tmp_path / FLOWN_FILE).write_text(json.dumps(flown), encoding="utf-8")
+    frames = view_document(TASK, tmp_path)["flown"]
+    assert frames["converged"] == [True, False]
+    for key in ("platform_position", "platform_quaternion", "cables", "tension", "thrust"):
+        assert frames[key][0] is not None and frames[key][1] is None, key
+    np.testing.assert_allclose(frames["drones"], drones, atol=1e-6)
+
+
 @pytest.mark.parametrize(
     ("flown", "reason"),
     [
