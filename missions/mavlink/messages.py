@@ -193,11 +193,13 @@ def ardupilot_readback(item: MissionItem) -> MissionItem:
     A location's altitude is stored as ``z * 100.0f`` truncated to whole centimetres and
     returned as ``alt * 0.01f``; a NAV_WAYPOINT keeps only its hold time (param1, a uint16
     of whole seconds) and returns 0 for param2-4 (Copter stores no acceptance radius, pass
-    radius or yaw). Everything else comes back as sent.
+    radius or yaw). A command without a location (DO_CHANGE_SPEED) comes back in frame
+    GLOBAL (0) whatever frame it was sent in (seen on ArduCopter 4.5.7 SITL: AP_Mission keeps
+    no frame for it). Everything else comes back as sent.
     """
     sent = as_sent(item)
     if int(item.command) not in _STORED_LOCATION:
-        return sent
+        return replace(sent, frame=MavFrame.GLOBAL) if item.frame == MavFrame.MISSION else sent
     centimetres = np.trunc(np.float32(item.z) * np.float32(100.0))
     stored = replace(sent, z=float(np.float32(centimetres) * np.float32(0.01)))
     if int(item.command) == MavCmd.NAV_WAYPOINT:
@@ -353,4 +355,26 @@ def global_position_int(
             "vz": vz,
             "hdg": heading_cdeg,
         },
+    )
+
+
+def param_set(name: str, value: float, target: Endpoint) -> MessageSpec:
+    """PARAM_SET of ``name`` (at most 16 characters) to ``value`` as a float32 (ArduPilot
+    stores every parameter type and converts; it answers with PARAM_VALUE)."""
+    return (
+        "PARAM_SET",
+        {
+            **_target(target),
+            "param_id": name.encode("ascii"),
+            "param_value": float(value),
+            "param_type": dialect.MAV_PARAM_TYPE_REAL32,
+        },
+    )
+
+
+def param_request_read(name: str, target: Endpoint) -> MessageSpec:
+    """PARAM_REQUEST_READ of ``name`` by name (param_index -1)."""
+    return (
+        "PARAM_REQUEST_READ",
+        {**_target(target), "param_id": name.encode("ascii"), "param_index": -1},
     )

@@ -200,7 +200,7 @@ class VehicleLink:
         self._send_lock = threading.Lock()
         self._subscribers_lock = threading.Lock()
         self._inboxes: list[Inbox] = []
-        self._listeners: list[tuple[frozenset[str], Listener]] = []
+        self._listeners: list[tuple[frozenset[str] | None, Listener]] = []
         self._info: VehicleInfo | None = None
         self._heard = threading.Event()
         self._stop = threading.Event()
@@ -252,13 +252,14 @@ class VehicleLink:
             if inbox in self._inboxes:
                 self._inboxes.remove(inbox)
 
-    def add_listener(self, types: Iterable[str], callback: Listener) -> None:
-        """Call ``callback(msg)`` from the reader thread for every message of ``types``.
+    def add_listener(self, types: Iterable[str] | None, callback: Listener) -> None:
+        """Call ``callback(msg)`` from the reader thread for every message of ``types``
+        (None: every message from the vehicle).
 
         The callback must be quick and must not raise (it runs on the link's only reader).
         """
         with self._subscribers_lock:
-            self._listeners.append((frozenset(types), callback))
+            self._listeners.append((None if types is None else frozenset(types), callback))
 
     def remove_listener(self, callback: Listener) -> None:
         with self._subscribers_lock:
@@ -296,7 +297,7 @@ class VehicleLink:
             return
         with self._subscribers_lock:
             inboxes = [i for i in self._inboxes if kind in i.types]
-            listeners = [c for types, c in self._listeners if kind in types]
+            listeners = [c for types, c in self._listeners if types is None or kind in types]
         for inbox in inboxes:
             inbox.put(msg)
         for callback in listeners:

@@ -1,0 +1,47 @@
+"""Where SITL is and how fast it runs: one settings object (environment prefix
+``FLYCRANE_SITL_``, e.g. ``FLYCRANE_SITL_BINARY=/opt/ardupilot/arducopter``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+#: The project's checkout: SITL is looked for in ``../shared/sitl`` beside it (CI's layout).
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+
+
+def default_binary() -> Path:
+    return PROJECT_ROOT.parent / "shared" / "sitl" / "arducopter"
+
+
+class SitlSettings(BaseSettings):
+    """ArduCopter SITL for flight tests (``../shared/sitl/README.md``)."""
+
+    model_config = SettingsConfigDict(env_prefix="FLYCRANE_SITL_", frozen=True, extra="forbid")
+
+    binary: Path = Field(default_factory=default_binary, description="arducopter SITL build")
+    defaults: Path | None = Field(
+        None, description="defaults file (default: copter.parm beside the binary)"
+    )
+    speedup: float = Field(
+        10.0,
+        gt=0,
+        le=50,
+        description="simulated seconds per wall second; three instances keep x10 on 2 cores",
+    )
+    min_rate: float = Field(
+        0.8,
+        gt=0,
+        le=1,
+        description="a flight is refused when simulated time ran slower than this fraction of "
+        "the speedup (checked against the wall clock)",
+    )
+    boot_timeout: float = Field(
+        120.0, gt=0, description="[s wall] until every vehicle has a position estimate"
+    )
+
+    @property
+    def defaults_file(self) -> Path:
+        return self.defaults or self.binary.parent / "copter.parm"
