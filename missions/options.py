@@ -45,12 +45,15 @@ class MissionOptions(BaseModel):
     max_leg_duration: float = Field(
         30.0, gt=0, description="[s] longest leg; long legs are fine, but keep progress visible"
     )
-    acceptance_radius: float = Field(0.2, gt=0, description="NAV_WAYPOINT param2 [m]")
-    start_hold: int = Field(
-        5, ge=0, le=3600, description="[s] hold at the start position after takeoff (integer)"
+    autopilot_acceleration: float = Field(
+        1.0,
+        gt=0,
+        le=2.5,
+        description="[m/s^2] how fast the autopilots change speed between legs (half their "
+        "WPNAV_ACCEL); the statics' force perturbation must cover it on the platform",
     )
     start_time_utc: datetime | None = Field(
-        None, description="optional NAV_DELAY barrier: all drones leave at this UTC time (1 s)"
+        None, description="planned release time: the time base of the MCAP log (default: now)"
     )
     end: Literal["hold", "land"] = Field("hold", description="after the last waypoint")
     altitude_frame: Literal["relative", "amsl"] = "relative"
@@ -58,9 +61,9 @@ class MissionOptions(BaseModel):
     @field_validator("start_time_utc")
     @classmethod
     def _in_utc(cls, value: datetime | None) -> datetime | None:
-        """An instant in UTC. The NAV_DELAY barrier takes its hour from this value and the
-        log its epoch time: a time given with an offset ("16:30+02:00") must become 14:30,
-        and a naive one is UTC (as the name says), not the machine's local time."""
+        """An instant in UTC. The log takes its epoch time from this value: a time given
+        with an offset ("16:30+02:00") must become 14:30, and a naive one is UTC (as the name
+        says), not the machine's local time."""
         if value is None:
             return None
         return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)

@@ -21,14 +21,15 @@ from flycrane.planning.planners import plan
 from flycrane.planning.result import PlanningProgress
 from flycrane.profiles import path_profile, plot_path_profile
 from missions.annotations import annotate
-from missions.builder import LegSpeeds, build_missions
+from missions.builder import HOLD_SEQ, RELEASE_SEQ, build_missions
+from missions.flight_plan import plan_flight
 from missions.formats import dumps, mission_json, qgc_plan, waypoints_text
 from missions.geodesy import geodetic_from_enu
 from missions.mcap_log import LogInputs, write_mcap
+from missions.parameter_file import parameter_file_text
 from missions.task import ResolvedTask, TaskSpec, resolve_task
 from missions.timing_tolerance import timing_tolerance
 from missions.tracks import track_from_path
-from missions.waypoints import reduce_to_waypoints
 
 logger = logging.getLogger(__name__)
 
@@ -50,6 +51,26 @@ class TaskOutcome:
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+#: The head of every exported ``.parm`` file.
+PARM_HEADER = """FlyCrane: parameters every drone of this mission must have (ArduCopter 4.5).
+Load them before the flight; the upload reads them back and reports any that differ.
+Never load BARO_GND_TEMP on a powered vehicle (SITL's altitude jumped by 27 m)."""
+
+
+def _self_contained(task: TaskSpec, resolved: ResolvedTask) -> dict[str, Any]:
+    """The task with its system, scene, start and goal written out, so that the task's
+    directory alone says what was planned (the flight report reads it)."""
+    problem = resolved.problem
+    return task.model_copy(
+        update={
+            "system": problem.system.spec,
+            "scene": problem.scene,
+            "start": tuple(float(v) for v in resolved.start),
+            "goal": tuple(float(v) for v in resolved.goal),
+        }
+    ).model_dump(mode="json")
 
 
 def _write(out_dir: Path, name: str, text: str, artifacts: dict[str, str]) -> None:
@@ -97,60 +118,71 @@ def run_task(
     report("generating")
     artifacts: dict[str, str] = {}
     options, system = task.mission, problem.system
+    _write(out, "task.json", dumps(_self_contained(task, resolved)), artifacts)
     _write(
         out,
         "path.json",
         dumps({"configurations": planned.path.tolist(), "raw_path": result.path.tolist()}),
         artifacts,
     )
-    track = track_from_path(system, problem.space, planned.path, options)
-    # The plan keeps the scene's obstacle clearance c. The straight legs may use half of it;
-    # the other half is left for the flight. The timing tolerance is judged on the real
+    dense = track_from_path(system, problem.space, planned.path, options)
+    # The plan keeps the scene's obstacle clearance c. The legs may use half of it; the
+    # other half is left for the flight. The timing tolerance is judged on the real
     # obstacles, as a flown load is (docs/missions.md, "Clearance").
     clearance = problem.scene.collision.obstacle_clearance
     legs = problem.validity.with_clearance(clearance / 2)
-    waypoints = reduce_to_waypoints(system, track, legs.is_safe, options)
+    flight = plan_flight(system, dense, legs.is_safe, options)
     metrics = planned.metrics.as_dict() if planned.metrics else None
-    if not waypoints.ok:
+    if not flight.ok:
         outcome = TaskOutcome(
             "failed",
-            f"mission generation: {waypoints.reason}",
+            f"mission generation: {flight.reason}",
             metrics=metrics,
             artifacts=artifacts,
             **base,
         )
         _write(out, "summary.json", dumps(outcome.as_dict()), {})
         return outcome
-    annotations = annotate(system, waypoints.time, waypoints.q)
-    missions = build_missions(waypoints, options)
+    track = flight.retimed(dense)
+    annotations = annotate(system, flight.time, flight.q)
+    missions = build_missions(flight, options)
     flown = problem.validity.with_clearance(0.0)
-    tolerance = timing_tolerance(system, track, waypoints, flown.is_safe, options)
-    lat, lon, alt = geodetic_from_enu(waypoints.drones, options.origin)
+    tolerance = timing_tolerance(system, dense, flight, flown.is_safe, options)
+    lat, lon, alt = geodetic_from_enu(flight.drones, options.origin)
     mission_summary = {
-        "waypoints": len(waypoints.time),
-        "duration": float(waypoints.time[-1]),
-        "max_platform_deviation": waypoints.max_platform_deviation,
-        "max_cable_length_error": waypoints.max_cable_length_error,
+        "waypoints": len(flight.time),
+        "duration": flight.duration,
+        "max_platform_deviation": flight.max_platform_deviation,
+        "max_cable_length_error": flight.max_cable_length_error,
         "timing_tolerance": tolerance.as_dict(),
-        "slow_legs": LegSpeeds.of(waypoints).slow_legs(),
+        "early_legs": [list(e) for e in flight.early],
         "items_per_drone": [len(m.items) for m in missions],
+        "release": {"hold_seq": HOLD_SEQ, "release_seq": RELEASE_SEQ},
     }
     tracks = {
-        "time": waypoints.time.tolist(),
-        "configurations": waypoints.q.tolist(),
-        "drones_enu": waypoints.drones.tolist(),
+        "time": flight.time.tolist(),
+        "configurations": flight.q.tolist(),
+        "drones_enu": flight.drones.tolist(),
         "drones_wgs84": np.stack([lat, lon, alt], axis=-1).tolist(),
-        "leg_speeds": waypoints.leg_speeds.tolist(),
+        "speed_limits": [[asdict(limit) for limit in row] for row in flight.limits],
         "annotations": annotations.records(),
         "timing_tolerance": tolerance.as_dict(),
         "dense": {"time": track.time.tolist(), "configurations": track.q.tolist()},
+        "motion": flight.motion.as_dict(),
     }
     _write(out, "tracks.json", dumps(tracks), artifacts)
+    parameters = flight.settings.parameters()
     for mission in missions:
         stem = f"drone{mission.drone}"
         _write(out, f"{stem}.waypoints", waypoints_text(mission), artifacts)
         _write(out, f"{stem}.plan", dumps(qgc_plan(mission, options.max_drone_speed)), artifacts)
         _write(out, f"{stem}.mission.json", dumps(mission_json(mission)), artifacts)
+        _write(
+            out,
+            f"{stem}.parm",
+            parameter_file_text(parameters, flight.settings.reasons(), PARM_HEADER),
+            artifacts,
+        )
     start = options.start_time_utc or datetime.now(UTC)
     write_mcap(
         out / "mission.mcap",
@@ -183,5 +215,5 @@ def run_task(
         "done", "", metrics=metrics, mission=mission_summary, artifacts=artifacts, **base
     )
     _write(out, "summary.json", dumps(outcome.as_dict()), artifacts)
-    logger.info("task done in %s: %d waypoints", out, len(waypoints.time))
+    logger.info("task done in %s: %d waypoints", out, len(flight.time))
     return outcome

@@ -10,8 +10,10 @@ every mission set we compute, by bisection:
 - **speed mismatch**: the largest ``eps`` such that any one drone flying all its legs at
   ``(1 + eps)`` or ``(1 - eps)`` times the planned speed keeps the load valid.
 
-Late drones wait at their start; drones that finish early hold their last waypoint. The
-bisection assumes a larger error is never safer, and stops at ``TOLERANCE_RESOLUTION``.
+Each drone flies the motion the autopilot model predicts for it (:class:`FlightPlan`) on its
+own warped clock: late drones wait at their start, drones that finish early hold their last
+waypoint. The bisection assumes a larger error is never safer, and stops at
+``TOLERANCE_RESOLUTION``.
 """
 
 from __future__ import annotations
@@ -25,9 +27,10 @@ from numpy.typing import NDArray
 
 from flycrane.cable_system import CableSystem
 from flycrane.direct_kinematics import configuration_from_drone_positions
+from missions.flight_plan import FlightPlan
 from missions.options import MissionOptions
 from missions.tracks import Track
-from missions.waypoints import WaypointPlan, drone_positions_at, planned_configurations
+from missions.waypoints import planned_configurations
 
 Validity = Callable[[NDArray[np.float64]], NDArray[np.bool_]]
 
@@ -53,23 +56,21 @@ class TimingTolerance:
 def flight_is_safe(
     system: CableSystem,
     track: Track,
-    plan: WaypointPlan,
+    plan: FlightPlan,
     validity: Validity,
     clock: Callable[[NDArray], NDArray],
     step: float,
 ) -> bool:
     """Whether drones flying the plan on warped clocks keep the load valid throughout.
 
-    ``clock(t)`` maps mission time t (C,) to each drone's plan time, shape (C, 3).
+    ``clock(t)`` maps mission time t (C,) to each drone's own mission time, shape (C, 3).
     """
-    end = plan.time[-1]
+    end = plan.duration
     t = np.arange(0.0, 2.0 * end + step, step)
     local = clock(t)
-    drones = np.stack(
-        [drone_positions_at(plan.time, plan.drones, local[:, j])[:, j] for j in range(3)], axis=1
-    )
-    # Start the reconstruction from the plan at the drones' mean plan time.
-    initial = planned_configurations(track, np.clip(local.mean(axis=1), 0.0, end))
+    drones = plan.motion.at_each(local)
+    # Start the reconstruction from the plan at the drones' mean progress.
+    initial = planned_configurations(track, plan.progress_time(np.clip(local.mean(axis=1), 0, end)))
     rebuilt = configuration_from_drone_positions(system, drones, initial=initial)
     return bool(np.all(rebuilt.converged & validity(rebuilt.q)))
 
@@ -88,7 +89,7 @@ def _largest_safe(safe: Callable[[float], bool], limit: float) -> float:
 def timing_tolerance(
     system: CableSystem,
     track: Track,
-    plan: WaypointPlan,
+    plan: FlightPlan,
     validity: Validity,
     options: MissionOptions,
     max_offset: float = 5.0,

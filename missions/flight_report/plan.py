@@ -1,5 +1,7 @@
 """What the drones were told to do, on mission time (zero at the release), read from a
-task's directory as ``flycrane plan`` wrote it."""
+task's directory as ``flycrane plan`` wrote it: the autopilots' modelled motion
+(:class:`~missions.motion.DroneMotion`) and the dense plan of configurations on the same
+time."""
 
 from __future__ import annotations
 
@@ -11,9 +13,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.kinematics import drone_positions_from_configuration
+from missions.motion import DroneMotion
 from missions.task import ResolvedTask, TaskSpec, resolve_task
 from missions.tracks import Track
-from missions.waypoints import drone_positions_at, planned_configurations
+from missions.waypoints import planned_configurations
 
 #: Plan time between the samples progress is matched against [s].
 PROGRESS_STEP_S = 0.02
@@ -26,7 +29,8 @@ class PlannedFlight:
     resolved: ResolvedTask
     waypoint_time: NDArray[np.float64]  #: (K,) [s]
     waypoint_drones: NDArray[np.float64]  #: (K, 3, 3) ENU [m]
-    track: Track  #: the dense plan: configurations and drone positions on the time law
+    track: Track  #: the dense plan: configurations and drone positions on mission time
+    motion: DroneMotion  #: where the autopilots are told to be
     timing_tolerance: dict[str, float | str]
 
     @property
@@ -35,7 +39,7 @@ class PlannedFlight:
 
     def drones_at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """Commanded drone positions at mission times ``t`` (len(t), 3, 3)."""
-        return drone_positions_at(self.waypoint_time, self.waypoint_drones, t)
+        return self.motion.at(t)
 
     def configurations_at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """Planned configurations at mission times ``t`` (len(t), 9)."""
@@ -62,5 +66,6 @@ class PlannedFlight:
             waypoint_time=np.array(tracks["time"]),
             waypoint_drones=np.array(tracks["drones_enu"]),
             track=track,
+            motion=DroneMotion.from_dict(tracks["motion"]),
             timing_tolerance=tracks["timing_tolerance"],
         )

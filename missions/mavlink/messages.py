@@ -183,7 +183,13 @@ COMPARED_FIELDS = ("command", "frame", "autocontinue", "mission_type", "x", "y",
                    "param1", "param2", "param3", "param4", "z")  # fmt: skip
 #: Commands whose location AP_Mission stores (altitude in whole centimetres).
 _STORED_LOCATION = frozenset(
-    {MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_UNLIM, MavCmd.NAV_LAND, MavCmd.NAV_TAKEOFF}
+    {
+        MavCmd.NAV_WAYPOINT,
+        MavCmd.NAV_SPLINE_WAYPOINT,
+        MavCmd.NAV_LOITER_UNLIM,
+        MavCmd.NAV_LAND,
+        MavCmd.NAV_TAKEOFF,
+    }
 )
 
 

@@ -86,7 +86,7 @@ class FlightPlanFiles:
     parameters: tuple[dict[str, float], ...]  #: per drone, from ``drone{k}.parm``
     hold_seq: int  #: the NAV_LOITER_UNLIM at the start
     release_seq: int  #: the item the release jumps to
-    end_seq: int  #: the last item (the hold at the end)
+    end_seq: tuple[int, ...]  #: per drone, its last item (the hold at the end)
     duration_s: float  #: the plan's duration after the release
 
     @classmethod
@@ -110,7 +110,7 @@ class FlightPlanFiles:
             parameters=tuple(parameters),
             hold_seq=holds[0],
             release_seq=holds[0] + 1,
-            end_seq=items[-1].seq,
+            end_seq=tuple(m.items[-1].seq for m in missions),
             duration_s=float(tracks["time"][-1]),
         )
 
@@ -135,7 +135,7 @@ class SitlFlight:
     speedup: float
     hold_seq: int
     release_seq: int
-    end_seq: int
+    end_seq: tuple[int, ...]
     planned_duration_s: float
     vehicles: tuple[VehicleFlight, ...]
     parameters: dict[str, dict[str, float]]  #: what was set, per vehicle
@@ -373,7 +373,7 @@ def _fly(
     report = _release(links, plan.release_seq, options.release_delays, sim, policy)
     flight_s = (2.0 * plan.duration_s + max(options.release_delays) + 30.0) / sim
     progress.wait(
-        lambda: all(progress.current[n] == plan.end_seq for n in progress.current),
+        lambda: all(progress.current[link.name] == plan.end_seq[k] for k, link in enumerate(links)),
         flight_s,
         "every drone at its end hold",
     )

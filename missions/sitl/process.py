@@ -68,7 +68,29 @@ class SitlInstance:
         return f"tcp:127.0.0.1:{BASE_PORT + 10 * self.index}"
 
 
-def sitl_command(settings: SitlSettings, index: int, system_id: int, home: SitlHome) -> list[str]:
+def isa_temperature(altitude: float) -> float:
+    """The standard atmosphere's temperature at ``altitude`` [m AMSL] [deg C]."""
+    return 15.0 - 0.0065 * altitude
+
+
+def defaults_file(settings: SitlSettings, home: SitlHome, directory: Path) -> Path:
+    """The defaults SITL boots with: the configured file, plus calibrated barometers
+    (:attr:`SitlSettings.calibrated_barometers`). A defaults file is read before the
+    barometers are calibrated: the only time BARO_GND_TEMP may change (set on a running
+    vehicle, it moved the altitude estimate by 27 m)."""
+    if not settings.calibrated_barometers:
+        return settings.defaults_file
+    path = directory / "defaults.parm"
+    base = settings.defaults_file.read_text(encoding="utf-8")
+    # 0 means "guess": at 2300 m the standard temperature is 0.05 C, never exactly 0
+    temperature = isa_temperature(home.altitude) or 0.01
+    path.write_text(f"{base.rstrip()}\nBARO_GND_TEMP {temperature:.3f}\n", encoding="utf-8")
+    return path
+
+
+def sitl_command(
+    settings: SitlSettings, index: int, system_id: int, home: SitlHome, defaults: Path
+) -> list[str]:
     """The command line of instance ``index`` (see ``../shared/sitl/README.md``)."""
     command = [
         str(settings.binary),
@@ -78,7 +100,7 @@ def sitl_command(settings: SitlSettings, index: int, system_id: int, home: SitlH
         "--speedup",
         f"{settings.speedup:g}",
         "--defaults",
-        str(settings.defaults_file),
+        str(defaults),
         "-I",
         str(index),
         "--sysid",
@@ -124,9 +146,10 @@ class SitlGroup:
                 workdir = self.directory / f"sitl{index}"
                 workdir.mkdir(exist_ok=True)
                 system_id = self.first_sysid + index
+                defaults = defaults_file(self.settings, home, workdir)
                 with open(workdir / "console.log", "wb") as console:
                     process = subprocess.Popen(
-                        sitl_command(self.settings, index, system_id, home),
+                        sitl_command(self.settings, index, system_id, home, defaults),
                         cwd=workdir,
                         stdin=subprocess.DEVNULL,
                         stdout=console,

@@ -41,6 +41,12 @@ class SitlSettings(BaseSettings):
     boot_timeout: float = Field(
         120.0, gt=0, description="[s wall] until every vehicle has a position estimate"
     )
+    calibrated_barometers: bool = Field(
+        True,
+        description="boot with BARO_GND_TEMP at the standard atmosphere's temperature at home: "
+        "SITL otherwise converts pressure with a temperature guessed per instance (25-31 C), "
+        "which reads heights 4.6-7 % high and differently on each drone",
+    )
 
     @property
     def defaults_file(self) -> Path:

@@ -1,0 +1,91 @@
+"""What ArduCopter (4.5) does with our missions, and the parameters the plan assumes.
+
+Gathered in one place, each with the reason and where it was measured or read (design.md
+section 9; ``docs/missions.md`` "What ArduCopter does"):
+
+- **Timed legs are spline waypoints** (NAV_SPLINE_WAYPOINT). A straight NAV_WAYPOINT leg
+  is an S-curve built when the *previous* waypoint starts, with the speed in force then: a
+  DO_CHANGE_SPEED before a leg reaches it one leg late and only partly (short legs keep the
+  old speed), which is what stretched our first SITL flights to 1.2x and 2.2x the plan. A
+  spline leg reads its speed limits at every step, so each leg flies at its own speed
+  (:mod:`missions.autopilots.spline` models it step by step).
+- **Start**: takeoff to the start, hold there in NAV_LOITER_UNLIM, released by the ground
+  station with MISSION_SET_CURRENT to the item after the hold, sent to the three back to
+  back: the take-offs lift 0.27-0.41 s apart and any hold timer runs from each drone's own
+  arrival, but a release reaches all three within a millisecond.
+- **Speeds**: DO_CHANGE_SPEED ground (param1 1), climb (2) and descent (3) speeds; a ground
+  speed below 20 cm/s is ignored (WPNAV_WP_SPEED_MIN), climb and descent speeds have no
+  floor.
+- **Parameters** (:class:`ArduCopterSettings`, written to each drone's ``.parm`` and
+  checked on the vehicle at upload). BARO_GND_TEMP is deliberately absent: changing it on a
+  powered vehicle moved SITL's altitude estimate by 27 m (design.md section 9).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from missions.autopilots.spline import AccelLimits, SpeedLimits
+
+#: ArduCopter ignores DO_CHANGE_SPEED ground speeds below this (AC_WPNav, Copter 4.5) [m/s].
+MIN_GROUND_SPEED = 0.20
+#: WPNAV_ACCEL and WPNAV_ACCEL_Z bounds (ArduCopter's parameter ranges) [m/s^2].
+ACCEL_RANGE = (0.5, 5.0)
+
+
+@dataclass(frozen=True)
+class ArduCopterSettings:
+    """The navigation parameters a plan assumes on every drone (SI units here; the
+    ``.parm`` file has ArduPilot's)."""
+
+    accel: float = 0.5  #: WPNAV_ACCEL [m/s^2]
+    accel_z: float = 0.5  #: WPNAV_ACCEL_Z [m/s^2]
+    speed: float = 5.0  #: WPNAV_SPEED [m/s], the ground speed before the first DO
+    speed_up: float = 2.5  #: WPNAV_SPEED_UP [m/s]
+    speed_down: float = 1.5  #: WPNAV_SPEED_DN [m/s]
+    jerk: float = 1.0  #: WPNAV_JERK [m/s^3]
+    position_p: float = 1.0  #: PSC_POSXY_P
+
+    @classmethod
+    def for_acceleration(cls, max_acceleration: float) -> ArduCopterSettings:
+        """Settings whose spline legs change speed at ``max_acceleration`` [m/s^2]: a
+        spline uses half the kinematic limit along its tangent, so WPNAV_ACCEL and
+        WPNAV_ACCEL_Z are twice it, within their ranges."""
+        low, high = ACCEL_RANGE
+        accel = min(max(2.0 * max_acceleration, low), high)
+        return cls(accel=accel, accel_z=accel)
+
+    @property
+    def accel_limits(self) -> AccelLimits:
+        return AccelLimits(self.accel, self.accel_z)
+
+    @property
+    def initial_speeds(self) -> SpeedLimits:
+        return SpeedLimits(self.speed, self.speed_up, self.speed_down)
+
+    def parameters(self) -> dict[str, float]:
+        """The ``.parm`` values, in ArduPilot's units."""
+        return {
+            "WPNAV_ACCEL": round(self.accel * 100.0, 3),
+            "WPNAV_ACCEL_Z": round(self.accel_z * 100.0, 3),
+            "WPNAV_SPEED": round(self.speed * 100.0, 3),
+            "WPNAV_SPEED_UP": round(self.speed_up * 100.0, 3),
+            "WPNAV_SPEED_DN": round(self.speed_down * 100.0, 3),
+            "WPNAV_JERK": self.jerk,
+            "PSC_POSXY_P": self.position_p,
+            "WP_YAW_BEHAVIOR": 0.0,
+        }
+
+    @staticmethod
+    def reasons() -> dict[str, str]:
+        """Why the plan needs each parameter (the ``.parm`` file's comments)."""
+        return {
+            "WPNAV_ACCEL": "spline legs change speed at half of it: the plan's acceleration limit",
+            "WPNAV_ACCEL_Z": "the same for climbs and descents",
+            "WPNAV_SPEED": "ground speed limit until the first DO_CHANGE_SPEED (cm/s)",
+            "WPNAV_SPEED_UP": "climb speed limit until the first climb DO_CHANGE_SPEED (cm/s)",
+            "WPNAV_SPEED_DN": "descent speed limit until the first descent DO_CHANGE_SPEED",
+            "WPNAV_JERK": "the leg clock's reaction to tracking lag (time constant ACCEL/JERK)",
+            "PSC_POSXY_P": "the same on all three drones: it sets how much a lagging drone slows",
+            "WP_YAW_BEHAVIOR": "0: keep the heading; the default yaws at every corner",
+        }

@@ -1,0 +1,73 @@
+"""A drone's chain of spline legs as ArduCopter flies it: released from rest at the first
+point, one set of speed limits per leg (the DO_CHANGE_SPEED items before it), stopping at
+the last point (the final hold).
+
+Each leg is set up when it starts, with the limits in force then; the speed at which it may
+end is the next leg's entry limit computed with the *same* limits (ArduPilot sets the next
+leg up before that leg's DO items run), and the next leg starts at the speed the previous
+one ended with (:mod:`missions.autopilots.spline`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from missions.autopilots.spline import (
+    WPNAV_DT,
+    AccelLimits,
+    HermiteLeg,
+    SpeedLimits,
+    entry_speed_limit,
+    fly_leg,
+    legs_through,
+)
+
+
+@dataclass(frozen=True)
+class ChainFlight:
+    """Where the target is, every step, and when each waypoint is reached."""
+
+    legs: tuple[HermiteLeg, ...]
+    arrival: NDArray[np.float64]  #: (K,) [s]: 0 at the release, then each waypoint
+    time: NDArray[np.float64]  #: (N,) every step [s]
+    position: NDArray[np.float64]  #: (N, 3) [m]
+    speed: NDArray[np.float64]  #: (N,) [m/s]
+
+    def at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Positions at times ``t`` (held at the ends), (len(t), 3)."""
+        t = np.asarray(t, dtype=float)
+        return np.column_stack([np.interp(t, self.time, self.position[:, i]) for i in range(3)])
+
+
+def fly_chain(
+    points: NDArray[np.float64],
+    limits: Sequence[SpeedLimits],
+    accel: AccelLimits,
+    dt: float = WPNAV_DT,
+) -> ChainFlight:
+    """Fly the spline chain through ``points`` (K, 3) with ``limits[k]`` on leg k."""
+    legs = legs_through(points)
+    if len(limits) != len(legs):
+        raise ValueError(f"{len(limits)} speed limits for {len(legs)} legs")
+    times, positions, speeds, arrival = [np.zeros(1)], [points[:1]], [np.zeros(1)], [0.0]
+    entry, start = 0.0, 0.0
+    for k, (leg, limit) in enumerate(zip(legs, limits, strict=True)):
+        exit_max = entry_speed_limit(legs[k + 1], limit, accel) if k + 1 < len(legs) else 0.0
+        flown = fly_leg(leg, limit, accel, entry, exit_max, dt)
+        times.append(start + flown.time[1:])
+        positions.append(leg.position(flown.u[1:]))
+        speeds.append(flown.speed[1:])
+        start += flown.duration
+        arrival.append(start)
+        entry = flown.exit_speed
+    return ChainFlight(
+        tuple(legs),
+        np.array(arrival),
+        np.concatenate(times),
+        np.concatenate(positions),
+        np.concatenate(speeds),
+    )

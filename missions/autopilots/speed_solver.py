@@ -1,0 +1,169 @@
+"""Waypoint times and per-drone speed limits with which ArduCopter flies three spline chains
+in step.
+
+Leg by leg from the release, with the model of :mod:`missions.autopilots.spline`:
+
+1. **The leg's time.** Each drone's shortest duration (its binding limit at the drone speed
+   limit) and longest (at the lowest limit ArduCopter accepts, see below) bracket what it
+   can fly. The leg ends at the planned time (the dense plan's time law, shifted by any
+   delay so far), raised to the slowest drone's shortest and, where possible, lowered to
+   the fastest drone's longest.
+2. **Each drone's limit.** One limit binds: the horizontal speed on legs that are mostly
+   horizontal, else the climb or descent speed; the others keep the generous defaults. It
+   is found by bisection on the leg's flown duration (which falls as the limit rises), the
+   target being the leg's end time minus the drone's *modelled* arrival at its start, so an
+   error on one leg is taken back on the next instead of adding up.
+
+A horizontal limit cannot be set below 20 cm/s (ArduCopter ignores it): such a leg uses its
+vertical limit if it climbs or descends at all; a level leg that should be slower is flown
+at 20 cm/s and reported as early (:attr:`FleetSpeeds.early`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from missions.autopilots.ardupilot import MIN_GROUND_SPEED, ArduCopterSettings
+from missions.autopilots.chain import ChainFlight, fly_chain
+from missions.autopilots.spline import (
+    HermiteLeg,
+    SpeedLimits,
+    entry_speed_limit,
+    fly_leg,
+    legs_through,
+)
+
+#: Bisection steps on the binding limit (its bracket shrinks by 2^-40).
+BISECTION_STEPS = 40
+#: Highest speed limit searched [m/s].
+MAX_LIMIT = 5.0
+#: Lowest climb or descent limit searched [m/s].
+MIN_VERTICAL = 1e-3
+#: A leg that climbs or descends at least this much may be timed by its vertical limit [m].
+MIN_VERTICAL_EXTENT = 0.01
+
+
+@dataclass(frozen=True)
+class FleetSpeeds:
+    """The waypoint times and, per drone, the limits of every leg and the modelled flight."""
+
+    times: NDArray[np.float64]  #: (K,) waypoint times [s from the release]
+    limits: tuple[tuple[SpeedLimits, ...], ...]  #: [drone][leg]
+    flights: tuple[ChainFlight, ...]  #: per drone
+    early: tuple[tuple[int, int], ...]  #: (drone, leg), 1-based: flown faster than planned
+    late: tuple[tuple[int, int], ...]  #: (drone, leg): slower than planned
+
+
+@dataclass
+class _Drone:
+    legs: list[HermiteLeg]
+    entry: float = 0.0  # speed at the start of the next leg [m/s]
+    start: float = 0.0  # modelled time of the start of the next leg [s]
+
+
+def _axis(chord: NDArray[np.float64]) -> str:
+    horizontal = float(np.hypot(chord[0], chord[1]))
+    if horizontal >= abs(chord[2]):
+        return "horizontal"
+    return "up" if chord[2] > 0 else "down"
+
+
+def _limit(generous: SpeedLimits, axis: str, value: float) -> SpeedLimits:
+    return replace(generous, **{axis: value})
+
+
+class _LegProblem:
+    """One drone's next leg: flown duration and exit speed for a binding limit value."""
+
+    def __init__(self, drone: _Drone, k: int, settings: ArduCopterSettings) -> None:
+        self.drone, self.k, self.settings = drone, k, settings
+        leg = drone.legs[k]
+        self.chord = leg.destination - leg.origin
+        self.axis = _axis(self.chord)
+
+    def fly(self, axis: str, value: float) -> tuple[float, float]:
+        legs, k = self.drone.legs, self.k
+        limit = _limit(self.settings.initial_speeds, axis, value)
+        accel = self.settings.accel_limits
+        exit_max = entry_speed_limit(legs[k + 1], limit, accel) if k + 1 < len(legs) else 0.0
+        flown = fly_leg(legs[k], limit, accel, self.drone.entry, exit_max)
+        return flown.duration, flown.exit_speed
+
+    def fastest(self, max_speed: float) -> float:
+        """Duration with the binding limit at ``max_speed`` along the chord [s]."""
+        share = float(np.linalg.norm(self.chord))
+        if share == 0.0:
+            return 0.0
+        horizontal = float(np.hypot(self.chord[0], self.chord[1]))
+        component = horizontal if self.axis == "horizontal" else abs(float(self.chord[2]))
+        return self.fly(self.axis, max(max_speed * component / share, MIN_VERTICAL))[0]
+
+    def slowest(self) -> float:
+        """Longest duration ArduCopter can be made to fly it [s] (inf if unbounded)."""
+        if self.axis != "horizontal" or abs(float(self.chord[2])) >= MIN_VERTICAL_EXTENT:
+            return np.inf
+        return self.fly("horizontal", MIN_GROUND_SPEED)[0]
+
+    def solve(self, target: float) -> tuple[str, float, str]:
+        """The binding axis and value that fly the leg in ``target`` [s], and "", "early"
+        or "late" where no value does."""
+        axis, low = self.axis, (MIN_GROUND_SPEED if self.axis == "horizontal" else MIN_VERTICAL)
+        if axis == "horizontal" and self.fly(axis, low)[0] < target:
+            if abs(float(self.chord[2])) >= MIN_VERTICAL_EXTENT:
+                axis, low = ("up" if self.chord[2] > 0 else "down"), MIN_VERTICAL
+        high = MAX_LIMIT
+        if self.fly(axis, low)[0] < target:
+            return axis, low, "early"
+        if self.fly(axis, high)[0] > target:
+            return axis, high, "late"
+        for _ in range(BISECTION_STEPS):
+            middle = float(np.sqrt(low * high))  # geometric: limits span decades
+            low, high = (middle, high) if self.fly(axis, middle)[0] > target else (low, middle)
+        return axis, high, ""
+
+
+def solve_fleet(
+    points: NDArray[np.float64],
+    planned: NDArray[np.float64],
+    settings: ArduCopterSettings,
+    max_speed: float,
+    min_durations: NDArray[np.float64] | None = None,
+) -> FleetSpeeds:
+    """Times and limits for three drones' chains through ``points`` (K, 3, 3) planned at
+    ``planned`` (K,) [s] (module docstring); ``min_durations`` (K-1,) are further lower
+    bounds per leg (the platform's angular rate)."""
+    drones = [_Drone(legs_through(points[:, j])) for j in range(3)]
+    times = [0.0]
+    shift = 0.0
+    limits: list[list[SpeedLimits]] = [[], [], []]
+    early, late = [], []
+    for k in range(len(planned) - 1):
+        problems = [_LegProblem(d, k, settings) for d in drones]
+        start = times[-1]
+        shortest = max(
+            p.fastest(max_speed) + d.start for p, d in zip(problems, drones, strict=True)
+        )
+        longest = min(p.slowest() + d.start for p, d in zip(problems, drones, strict=True))
+        floor = start + (0.0 if min_durations is None else float(min_durations[k]))
+        end = max(float(planned[k + 1]) + shift, shortest, floor)
+        if longest >= max(shortest, floor):
+            end = min(end, longest)
+        shift = end - float(planned[k + 1])
+        times.append(end)
+        for j, (problem, drone) in enumerate(zip(problems, drones, strict=True)):
+            axis, value, status = problem.solve(end - drone.start)
+            duration, drone.entry = problem.fly(axis, value)
+            drone.start += duration
+            limits[j].append(_limit(settings.initial_speeds, axis, value))
+            if status == "early":
+                early.append((j + 1, k + 1))
+            elif status == "late":
+                late.append((j + 1, k + 1))
+    accel = settings.accel_limits
+    flights = tuple(fly_chain(points[:, j], limits[j], accel) for j in range(3))
+    return FleetSpeeds(
+        np.array(times), tuple(tuple(row) for row in limits), flights, tuple(early), tuple(late)
+    )

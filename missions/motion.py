@@ -1,0 +1,79 @@
+"""Where the drones are told to be: each drone's commanded position on one time base.
+
+Mission time is zero at the release. :class:`DroneMotion` holds dense samples of the three
+drones' commanded positions (the autopilot's target, as the mission model flies it) and
+answers "where is drone j at time t", also with a clock of its own per drone (a drone that
+started late or flies slower, for the timing tolerance). Everything that judges a mission
+before it is flown (leg checks, timing tolerance) and after (the flight report) asks it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from missions.autopilots.chain import ChainFlight
+
+#: Sampling of a motion [s].
+MOTION_STEP_S = 0.01
+
+
+@dataclass(frozen=True)
+class DroneMotion:
+    """Commanded positions of three drones on mission time, and the planned waypoints."""
+
+    time: NDArray[np.float64]  #: (N,) [s]
+    drones: NDArray[np.float64]  #: (N, 3, 3) ENU [m]
+    waypoint_time: NDArray[np.float64]  #: (K,) planned arrival at each waypoint [s]
+
+    @property
+    def duration(self) -> float:
+        return float(self.time[-1])
+
+    def at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Positions at mission times ``t`` (held at the ends), (len(t), 3, 3)."""
+        t = np.asarray(t, dtype=float)
+        return self.at_each(np.repeat(t[:, None], 3, axis=1))
+
+    def at_each(self, local: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Drone j at its own time ``local[:, j]`` (C, 3) -> (C, 3, 3)."""
+        columns = [
+            np.column_stack(
+                [np.interp(local[:, j], self.time, self.drones[:, j, i]) for i in range(3)]
+            )
+            for j in range(3)
+        ]
+        return np.stack(columns, axis=1)
+
+    @classmethod
+    def straight(
+        cls, waypoint_time: NDArray[np.float64], waypoint_drones: NDArray[np.float64]
+    ) -> DroneMotion:
+        """Straight legs at constant speed between timed waypoints (K, 3, 3)."""
+        return cls(np.asarray(waypoint_time, float), np.asarray(waypoint_drones, float),
+                   np.asarray(waypoint_time, float))  # fmt: skip
+
+    @classmethod
+    def from_chains(
+        cls, flights: Sequence[ChainFlight], waypoint_time: NDArray[np.float64]
+    ) -> DroneMotion:
+        """Three drones' modelled chains, resampled every :data:`MOTION_STEP_S`."""
+        end = max(float(f.time[-1]) for f in flights)
+        t = np.arange(0.0, end + MOTION_STEP_S / 2, MOTION_STEP_S)
+        return cls(t, np.stack([f.at(t) for f in flights], axis=1), np.asarray(waypoint_time))
+
+    def as_dict(self) -> dict[str, list]:
+        return {
+            "time": self.time.tolist(),
+            "drones_enu": self.drones.tolist(),
+            "waypoint_time": self.waypoint_time.tolist(),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> DroneMotion:
+        return cls(
+            np.array(data["time"]), np.array(data["drones_enu"]), np.array(data["waypoint_time"])
+        )
