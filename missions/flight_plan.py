@@ -8,10 +8,10 @@ motion ArduCopter will fly with them (design.md section 9, ``missions.autopilots
    every waypoint together (:func:`missions.autopilots.speed_solver.solve_fleet`), no
    faster than the drone speed and platform angular rate limits allow.
 3. **Check**: the load reconstructed from the three *modelled* drone positions every
-   ``check_resolution`` seconds, against the plan at the same progress (mission time mapped
-   onto the dense plan's time law between waypoints), must pass the same checks as the
-   straight legs did; where it fails worst, the leg is split at the dense sample there, and
-   timing and check run again.
+   ``check_resolution`` seconds, against the plan at the formation's progress (the dense
+   sample nearest the three drones: a delay all three share is harmless, a difference
+   between them is not), must pass the same checks as the straight legs did; where it fails
+   worst, the leg is split at the dense sample there, and timing and check run again.
 """
 
 from __future__ import annotations

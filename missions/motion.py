@@ -19,6 +19,30 @@ from missions.autopilots.chain import ChainFlight
 
 #: Sampling of a motion [s].
 MOTION_STEP_S = 0.01
+#: How far ahead of the last match a progress search looks [samples of the plan].
+PROGRESS_WINDOW = 250
+
+
+def forward_progress(planned: NDArray[np.float64], flown: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Index into ``planned`` (M, D) nearest each ``flown`` (N, D) row, searched forward from
+    the previous match within :data:`PROGRESS_WINDOW` samples (a path may cross itself, and
+    a formation pass the same place twice)."""
+    index = np.zeros(len(flown), dtype=np.int64)
+    last = 0
+    for n, point in enumerate(flown):
+        stop = min(last + PROGRESS_WINDOW, len(planned))
+        last += int(np.argmin(np.linalg.norm(planned[last:stop] - point, axis=-1)))
+        index[n] = last
+    return index
+
+
+def formation_progress(
+    plan_time: NDArray[np.float64], plan_drones: NDArray[np.float64], drones: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The plan time (M,) whose three drone positions (M, 3, 3) are nearest the three
+    drones (N, 3, 3): where the formation is along the plan, whatever delay all three share."""
+    index = forward_progress(plan_drones.reshape(len(plan_drones), 9), drones.reshape(-1, 9))
+    return np.asarray(plan_time)[index]
 
 
 @dataclass(frozen=True)

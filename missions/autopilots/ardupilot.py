@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from missions.autopilots.spline import AccelLimits, SpeedLimits
+from missions.autopilots.spline import AccelLimits, SpeedLimits, Tracking
 
 #: ArduCopter ignores DO_CHANGE_SPEED ground speeds below this (AC_WPNav, Copter 4.5) [m/s].
 MIN_GROUND_SPEED = 0.20
@@ -45,6 +45,11 @@ class ArduCopterSettings:
     speed_down: float = 1.5  #: WPNAV_SPEED_DN [m/s]
     jerk: float = 1.0  #: WPNAV_JERK [m/s^3]
     position_p: float = 1.0  #: PSC_POSXY_P
+    velocity_p: float = 2.0  #: PSC_VELXY_P
+    #: How fast the airframe reaches the acceleration it is asked for [s] (not a parameter:
+    #: its attitude response). 0.15 s fits SITL's quad: with it the model's leg times match
+    #: the SITL flights' within a few percent (docs/missions.md, BENCHMARKS.md).
+    accel_lag: float = 0.15
 
     @classmethod
     def for_acceleration(cls, max_acceleration: float) -> ArduCopterSettings:
@@ -63,6 +68,17 @@ class ArduCopterSettings:
     def initial_speeds(self) -> SpeedLimits:
         return SpeedLimits(self.speed, self.speed_up, self.speed_down)
 
+    @property
+    def tracking(self) -> Tracking:
+        """The vehicle's response and the leg clock's filter (AC_WPNav's time constant
+        0.01 WPNAV_ACCEL [cm/s^2] / WPNAV_JERK [m/s^3])."""
+        return Tracking(
+            position_p=self.position_p,
+            velocity_p=self.velocity_p,
+            accel_lag=self.accel_lag,
+            clock_tc=self.accel * 100.0 * 0.01 / self.jerk,
+        )
+
     def parameters(self) -> dict[str, float]:
         """The ``.parm`` values, in ArduPilot's units."""
         return {
@@ -73,6 +89,7 @@ class ArduCopterSettings:
             "WPNAV_SPEED_DN": round(self.speed_down * 100.0, 3),
             "WPNAV_JERK": self.jerk,
             "PSC_POSXY_P": self.position_p,
+            "PSC_VELXY_P": self.velocity_p,
             "WP_YAW_BEHAVIOR": 0.0,
         }
 
@@ -87,5 +104,6 @@ class ArduCopterSettings:
             "WPNAV_SPEED_DN": "descent speed limit until the first descent DO_CHANGE_SPEED",
             "WPNAV_JERK": "the leg clock's reaction to tracking lag (time constant ACCEL/JERK)",
             "PSC_POSXY_P": "the same on all three drones: it sets how much a lagging drone slows",
+            "PSC_VELXY_P": "the tracking the plan's timing was modelled with",
             "WP_YAW_BEHAVIOR": "0: keep the heading; the default yaws at every corner",
         }

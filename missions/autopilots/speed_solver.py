@@ -30,10 +30,12 @@ from missions.autopilots.ardupilot import MIN_GROUND_SPEED, ArduCopterSettings
 from missions.autopilots.chain import ChainFlight, fly_chain
 from missions.autopilots.spline import (
     HermiteLeg,
+    LegFlight,
     SpeedLimits,
     entry_speed_limit,
     fly_leg,
     legs_through,
+    vehicle_state,
 )
 
 #: Bisection steps on the binding limit (its bracket shrinks by 2^-40).
@@ -60,7 +62,8 @@ class FleetSpeeds:
 @dataclass
 class _Drone:
     legs: list[HermiteLeg]
-    entry: float = 0.0  # speed at the start of the next leg [m/s]
+    state: NDArray[np.float64]  # the vehicle at the start of the next leg (vehicle_state)
+    entry: float = 0.0  # target speed at the start of the next leg [m/s]
     start: float = 0.0  # modelled time of the start of the next leg [s]
 
 
@@ -84,13 +87,15 @@ class _LegProblem:
         self.chord = leg.destination - leg.origin
         self.axis = _axis(self.chord)
 
-    def fly(self, axis: str, value: float) -> tuple[float, float]:
+    def fly(self, axis: str, value: float) -> LegFlight:
         legs, k = self.drone.legs, self.k
         limit = _limit(self.settings.initial_speeds, axis, value)
         accel = self.settings.accel_limits
         exit_max = entry_speed_limit(legs[k + 1], limit, accel) if k + 1 < len(legs) else 0.0
-        flown = fly_leg(legs[k], limit, accel, self.drone.entry, exit_max)
-        return flown.duration, flown.exit_speed
+        return fly_leg(
+            legs[k], limit, accel, self.drone.entry, exit_max, self.settings.tracking,
+            self.drone.state,
+        )  # fmt: skip
 
     def fastest(self, max_speed: float) -> float:
         """Duration with the binding limit at ``max_speed`` along the chord [s]."""
@@ -99,29 +104,31 @@ class _LegProblem:
             return 0.0
         horizontal = float(np.hypot(self.chord[0], self.chord[1]))
         component = horizontal if self.axis == "horizontal" else abs(float(self.chord[2]))
-        return self.fly(self.axis, max(max_speed * component / share, MIN_VERTICAL))[0]
+        return self.fly(self.axis, max(max_speed * component / share, MIN_VERTICAL)).duration
 
     def slowest(self) -> float:
         """Longest duration ArduCopter can be made to fly it [s] (inf if unbounded)."""
         if self.axis != "horizontal" or abs(float(self.chord[2])) >= MIN_VERTICAL_EXTENT:
             return np.inf
-        return self.fly("horizontal", MIN_GROUND_SPEED)[0]
+        return self.fly("horizontal", MIN_GROUND_SPEED).duration
 
     def solve(self, target: float) -> tuple[str, float, str]:
         """The binding axis and value that fly the leg in ``target`` [s], and "", "early"
         or "late" where no value does."""
         axis, low = self.axis, (MIN_GROUND_SPEED if self.axis == "horizontal" else MIN_VERTICAL)
-        if axis == "horizontal" and self.fly(axis, low)[0] < target:
+        if axis == "horizontal" and self.fly(axis, low).duration < target:
             if abs(float(self.chord[2])) >= MIN_VERTICAL_EXTENT:
                 axis, low = ("up" if self.chord[2] > 0 else "down"), MIN_VERTICAL
         high = MAX_LIMIT
-        if self.fly(axis, low)[0] < target:
+        if self.fly(axis, low).duration < target:
             return axis, low, "early"
-        if self.fly(axis, high)[0] > target:
+        if self.fly(axis, high).duration > target:
             return axis, high, "late"
         for _ in range(BISECTION_STEPS):
             middle = float(np.sqrt(low * high))  # geometric: limits span decades
-            low, high = (middle, high) if self.fly(axis, middle)[0] > target else (low, middle)
+            low, high = (
+                (middle, high) if self.fly(axis, middle).duration > target else (low, middle)
+            )
         return axis, high, ""
 
 
@@ -135,7 +142,7 @@ def solve_fleet(
     """Times and limits for three drones' chains through ``points`` (K, 3, 3) planned at
     ``planned`` (K,) [s] (module docstring); ``min_durations`` (K-1,) are further lower
     bounds per leg (the platform's angular rate)."""
-    drones = [_Drone(legs_through(points[:, j])) for j in range(3)]
+    drones = [_Drone(legs_through(points[:, j]), vehicle_state(points[0, j])) for j in range(3)]
     times = [0.0]
     shift = 0.0
     limits: list[list[SpeedLimits]] = [[], [], []]
@@ -155,15 +162,16 @@ def solve_fleet(
         times.append(end)
         for j, (problem, drone) in enumerate(zip(problems, drones, strict=True)):
             axis, value, status = problem.solve(end - drone.start)
-            duration, drone.entry = problem.fly(axis, value)
-            drone.start += duration
+            flown = problem.fly(axis, value)
+            drone.start += flown.duration
+            drone.entry, drone.state = flown.exit_speed, flown.state
             limits[j].append(_limit(settings.initial_speeds, axis, value))
             if status == "early":
                 early.append((j + 1, k + 1))
             elif status == "late":
                 late.append((j + 1, k + 1))
     accel = settings.accel_limits
-    flights = tuple(fly_chain(points[:, j], limits[j], accel) for j in range(3))
+    flights = tuple(fly_chain(points[:, j], limits[j], accel, settings.tracking) for j in range(3))
     return FleetSpeeds(
         np.array(times), tuple(tuple(row) for row in limits), flights, tuple(early), tuple(late)
     )

@@ -19,9 +19,12 @@ limit by at most half the tangential acceleration limit per second. The paramete
 by the distance flown at the previous step's speed. Limits are read at every step, so a
 DO_CHANGE_SPEED acts at once (at the leg's start, where the mission runs its DO items).
 
-Left out: ArduPilot also slows a leg's clock while the vehicle lags its target
-(``AC_WPNav::advance_wp_target_along_track``); a vehicle that tracks its target within a few
-centimetres (what SITL does on these legs) never triggers it.
+**The leg's clock** (``AC_WPNav::advance_wp_target_along_track``) runs slower while the
+vehicle lags its target: its rate is ``0.05 + (v_track - P e) / |v_target|``, clamped to
+[0, 1] and low-pass filtered with time constant ``0.01 WPNAV_ACCEL / WPNAV_JERK``, where
+``e`` is how far the vehicle is behind along the track and ``v_track`` its speed along it.
+So the vehicle's own response matters: :class:`Tracking` models it as the position
+controller's two gains and a first-order lag on the acceleration the airframe reaches.
 """
 
 from __future__ import annotations
@@ -196,33 +199,82 @@ def _limits_at(c, u, vxy, vup, vdn, axy, az):
 
 
 @numba.njit(cache=True, nogil=True)
-def _fly(c, vxy, vup, vdn, axy, az, entry, exit_max, dt, max_steps):
-    """Step the target along a leg (module docstring): u and speed after every step."""
+def _fly(c, vxy, vup, vdn, axy, az, entry, exit_max, dt, max_steps, state, lag):
+    """Step the target along a leg (module docstring), with the vehicle following it.
+
+    ``state`` is the vehicle's position, velocity, acceleration and the leg clock's scaler
+    (10 numbers), updated in place; ``lag`` the tracking model's position and velocity gains,
+    acceleration time constant and the scaler's filter time constant (tau <= 0: a vehicle
+    exactly on its target, the scaler always 1). Returns u, the target speed and the vehicle
+    position after every step."""
+    kp, kv, tau, tc = lag[0], lag[1], lag[2], lag[3]
     u_out = np.empty(max_steps + 1)
     v_out = np.empty(max_steps + 1)
+    x_out = np.empty((max_steps + 1, 3))
     dest = c[0] + c[1] + c[2] + c[3]
+    target = np.empty(3)
+    unit = np.zeros(3)
     u, v = 0.0, entry
+    for i in range(3):
+        target[i] = c[0, i]
+    if tau <= 0.0:
+        for i in range(3):
+            state[i] = target[i]
     u_out[0], v_out[0] = u, v
+    x_out[0] = state[0:3]
     n = 0
     while u < 1.0 and n < max_steps:
         limit, along, length, acc_norm, jerk_norm = _limits_at(c, u, vxy, vup, vdn, axy, az)
+        for i in range(3):
+            unit[i] = c[1, i] + 2.0 * c[2, i] * u + 3.0 * c[3, i] * u * u
+        if length > 0.0:
+            unit /= length
+        scale = 1.0
+        if tau > 0.0:
+            # AC_WPNav's leg clock: slowed while the vehicle lags its target (+5 % buffer)
+            instant = 1.0
+            if v > 0.0:
+                error = 0.0
+                track = 0.0
+                for i in range(3):
+                    error += (target[i] - state[i]) * unit[i]
+                    track += state[3 + i] * unit[i]
+                instant = min(max(0.05 + (track - kp * error) / v, 0.0), 1.0)
+            state[9] += (instant - state[9]) * dt / tc
+            scale = state[9]
+        step_dt = scale * dt
         d2 = 0.0
         for i in range(3):
-            p = c[0, i] + u * (c[1, i] + u * (c[2, i] + u * c[3, i]))
-            d2 += (dest[i] - p) ** 2
+            d2 += (dest[i] - target[i]) ** 2
         limit = min(limit, math.sqrt(2.0 * along * math.sqrt(d2) + exit_max * exit_max))
-        step = v * dt
+        step = v * step_dt
         if length > 0.0:
             du = step / length
         elif acc_norm > 0.0:  # a cusp: ArduPilot steps along the acceleration
             du = math.sqrt(2.0 * step / acc_norm)
         else:
             du = (6.0 * step / jerk_norm) ** (1.0 / 3.0)
-        v = min(max(limit, v - along * dt), v + along * dt)
+        previous = v
+        v = min(max(limit, v - along * step_dt), v + along * step_dt)
         u = min(u + du, 1.0)
+        for i in range(3):
+            target[i] = c[0, i] + u * (c[1, i] + u * (c[2, i] + u * c[3, i]))
+        if tau > 0.0:
+            # the position controller: velocity command from the position error, then the
+            # acceleration command, which the airframe reaches with a first-order lag
+            for i in range(3):
+                command = unit[i] * v + kp * (target[i] - state[i])
+                wanted = unit[i] * (v - previous) / dt + kv * (command - state[3 + i])
+                state[6 + i] += (wanted - state[6 + i]) * dt / tau
+                state[3 + i] += state[6 + i] * dt
+                state[i] += state[3 + i] * dt
+        else:
+            for i in range(3):
+                state[i] = target[i]
         n += 1
         u_out[n], v_out[n] = u, v
-    return u_out[: n + 1], v_out[: n + 1]
+        x_out[n] = state[0:3]
+    return u_out[: n + 1], v_out[: n + 1], x_out[: n + 1]
 
 
 def entry_speed_limit(leg: HermiteLeg, speed: SpeedLimits, accel: AccelLimits) -> float:
@@ -235,12 +287,39 @@ def entry_speed_limit(leg: HermiteLeg, speed: SpeedLimits, accel: AccelLimits) -
 
 
 @dataclass(frozen=True)
+class Tracking:
+    """How a vehicle follows its target, and how its leg clock reacts (module docstring).
+
+    ``position_p`` and ``velocity_p`` are the position controller's gains (PSC_POSXY_P,
+    PSC_VELXY_P); ``accel_lag`` the time constant [s] with which the airframe reaches the
+    acceleration it is asked for (its attitude response; calibrated on SITL flights, see
+    :data:`SITL_TRACKING`); ``clock_tc`` the leg clock's filter, 0.01 WPNAV_ACCEL [cm/s^2] /
+    WPNAV_JERK [m/s^3] [s]. ``accel_lag = 0`` is a vehicle exactly on its target.
+    """
+
+    position_p: float = 1.0
+    velocity_p: float = 2.0
+    accel_lag: float = 0.0
+    clock_tc: float = 2.0
+
+    def array(self) -> NDArray[np.float64]:
+        return np.array([self.position_p, self.velocity_p, self.accel_lag, self.clock_tc])
+
+
+def vehicle_state(position: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A vehicle at rest at ``position`` with an unslowed leg clock (see :func:`fly_leg`)."""
+    return np.concatenate([np.asarray(position, dtype=float), np.zeros(6), [1.0]])
+
+
+@dataclass(frozen=True)
 class LegFlight:
-    """A leg as flown: the target every step from the leg's start."""
+    """A leg as flown: the target and the vehicle every step from the leg's start."""
 
     time: NDArray[np.float64]  #: (N,) [s] from the leg's start
-    u: NDArray[np.float64]  #: (N,) curve parameter
+    u: NDArray[np.float64]  #: (N,) curve parameter of the target
     speed: NDArray[np.float64]  #: (N,) target speed [m/s]
+    vehicle: NDArray[np.float64]  #: (N, 3) vehicle position [m]
+    state: NDArray[np.float64]  #: the vehicle's state at the end (:func:`vehicle_state`)
 
     @property
     def duration(self) -> float:
@@ -257,13 +336,19 @@ def fly_leg(
     accel: AccelLimits,
     entry_speed: float,
     exit_speed_max: float,
+    tracking: Tracking | None = None,
+    state: NDArray[np.float64] | None = None,
     dt: float = WPNAV_DT,
     max_time: float = 600.0,
 ) -> LegFlight:
     """The target's motion along ``leg`` from ``entry_speed`` until u reaches 1, braking
-    towards ``exit_speed_max`` (the next leg's entry limit, 0 for a stop)."""
-    u, v = _fly(
+    towards ``exit_speed_max`` (the next leg's entry limit, 0 for a stop), and the vehicle
+    following it from ``state`` (default: at rest on the leg's origin)."""
+    tracking = tracking or Tracking()
+    state = vehicle_state(leg.origin) if state is None else np.array(state, dtype=float)
+    u, v, x = _fly(
         leg.coefficients, speed.horizontal, speed.up, speed.down, accel.horizontal,
         accel.vertical, float(entry_speed), float(exit_speed_max), dt, int(max_time / dt),
+        state, tracking.array(),
     )  # fmt: skip
-    return LegFlight(np.arange(len(u)) * dt, u, v)
+    return LegFlight(np.arange(len(u)) * dt, u, v, x, state)

@@ -37,6 +37,7 @@ from flycrane.statics import evaluate_statics
 from missions.flight_report.alignment import Releases
 from missions.flight_report.log import Track, VehicleLog
 from missions.flight_report.plan import PROGRESS_STEP_S, PlannedFlight
+from missions.motion import forward_progress
 
 #: Reconstructions per second of mission time (the issue asks for >= 5 Hz).
 REPORT_RATE_HZ = 10.0
@@ -47,8 +48,6 @@ ARRIVAL_TOLERANCE_M = 0.02
 #: hovering drone is equally near every instant of its hover, and a slow one's progress is
 #: dominated by the position estimate's noise (3 cm at 5 cm/s is 0.6 s).
 MOVING_SPEED = 0.1
-#: How far ahead of the last match the progress search looks [s of plan time].
-PROGRESS_WINDOW_S = 5.0
 #: After the last arrival, this much of the hold is judged too [s].
 END_MARGIN_S = 1.0
 
@@ -102,20 +101,6 @@ class FlightReport:
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
-
-
-def forward_progress(planned: NDArray[np.float64], flown: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Index into ``planned`` (M, D) nearest each ``flown`` (N, D) row, searched forward
-    from the previous match within :data:`PROGRESS_WINDOW_S` (a path may cross itself)."""
-    window = round(PROGRESS_WINDOW_S / PROGRESS_STEP_S)
-    index = np.zeros(len(flown), dtype=np.int64)
-    last = 0
-    for n, point in enumerate(flown):
-        stop = min(last + window, len(planned))
-        distance = np.linalg.norm(planned[last:stop] - point, axis=-1)
-        last += int(np.argmin(distance))
-        index[n] = last
-    return index
 
 
 def _pairwise(drones: NDArray[np.float64]) -> NDArray[np.float64]:
