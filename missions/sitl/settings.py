@@ -43,9 +43,9 @@ class SitlSettings(BaseSettings):
     )
     calibrated_barometers: bool = Field(
         True,
-        description="boot with BARO_GND_TEMP at the standard atmosphere's temperature at home: "
-        "SITL otherwise converts pressure with a temperature guessed per instance (25-31 C), "
-        "which reads heights 4.6-7 % high and differently on each drone",
+        description="boot with BARO_GND_TEMP 15 C, the temperature of SITL's atmosphere: it "
+        "otherwise converts pressure with a temperature guessed per instance (25-31 C), which "
+        "reads heights 4.6-7 % high and differently on each drone",
     )
 
     @property
