@@ -15,8 +15,9 @@ Leg by leg from the release, with the model of :mod:`missions.autopilots.spline`
    error on one leg is taken back on the next instead of adding up.
 
 A horizontal limit cannot be set below 20 cm/s (ArduCopter ignores it): such a leg uses its
-vertical limit if it climbs or descends at all; a level leg that should be slower is flown
-at 20 cm/s and reported as early (:attr:`FleetSpeeds.early`).
+vertical limit if it climbs or descends enough; a level leg that should be slower is flown
+at 20 cm/s and reported as early (:attr:`FleetSpeeds.early`), and the flight plan merges it
+with a neighbour where it can (:mod:`missions.flight_plan`).
 """
 
 from __future__ import annotations
@@ -44,8 +45,11 @@ BISECTION_STEPS = 40
 MAX_LIMIT = 5.0
 #: Lowest climb or descent limit searched [m/s].
 MIN_VERTICAL = 1e-3
-#: A leg that climbs or descends at least this much may be timed by its vertical limit [m].
-MIN_VERTICAL_EXTENT = 0.01
+#: A leg may be timed by its vertical limit if it climbs or descends at least this much and
+#: at least this share of its length: on a nearly level spline the vertical speed limit
+#: binds only where the curve slopes, and the speed jumps where it levels off [m, -].
+MIN_VERTICAL_EXTENT = 0.05
+MIN_VERTICAL_SHARE = 0.3
 
 
 @dataclass(frozen=True)
@@ -106,9 +110,16 @@ class _LegProblem:
         component = horizontal if self.axis == "horizontal" else abs(float(self.chord[2]))
         return self.fly(self.axis, max(max_speed * component / share, MIN_VERTICAL)).duration
 
+    @property
+    def vertical_capable(self) -> bool:
+        """Whether the leg may be timed by its climb or descent limit."""
+        rise = abs(float(self.chord[2]))
+        length = float(np.linalg.norm(self.chord))
+        return rise >= MIN_VERTICAL_EXTENT and rise >= MIN_VERTICAL_SHARE * length
+
     def slowest(self) -> float:
         """Longest duration ArduCopter can be made to fly it [s] (inf if unbounded)."""
-        if self.axis != "horizontal" or abs(float(self.chord[2])) >= MIN_VERTICAL_EXTENT:
+        if self.axis != "horizontal" or self.vertical_capable:
             return np.inf
         return self.fly("horizontal", MIN_GROUND_SPEED).duration
 
@@ -117,7 +128,7 @@ class _LegProblem:
         or "late" where no value does."""
         axis, low = self.axis, (MIN_GROUND_SPEED if self.axis == "horizontal" else MIN_VERTICAL)
         if axis == "horizontal" and self.fly(axis, low).duration < target:
-            if abs(float(self.chord[2])) >= MIN_VERTICAL_EXTENT:
+            if self.vertical_capable:
                 axis, low = ("up" if self.chord[2] > 0 else "down"), MIN_VERTICAL
         high = MAX_LIMIT
         if self.fly(axis, low).duration < target:

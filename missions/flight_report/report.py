@@ -123,10 +123,20 @@ class Timing:
     progress_spread_p95: float
 
 
-def _arrivals(plan: PlannedFlight, tracks: Sequence[Track], releases: Releases) -> list[float]:
-    end = plan.waypoint_drones[-1]
+def _arrivals(
+    plan: PlannedFlight, vehicles: Sequence[VehicleLog], releases: Releases
+) -> list[float]:
+    """Each drone's arrival at the end of its mission on mission time: when its final hold
+    became current (the autopilot's own judgement that the last leg is done); failing that,
+    when it came within :data:`ARRIVAL_TOLERANCE_M` of where it settled at the end."""
+    end = plan.motion.drones[-1]
     arrival = []
-    for k, track in enumerate(tracks):
+    for k, vehicle in enumerate(vehicles):
+        event = vehicle.current.first(plan.end_seq[k])
+        if event is not None:
+            arrival.append(float(releases.mission_time(k, np.array([event[0]]))[0]))
+            continue
+        track = vehicle.estimated
         t = releases.mission_time(k, track.time)
         distance = np.linalg.norm(track.enu - end[k], axis=-1)
         near = (t >= 0.0) & (distance <= distance[-1] + ARRIVAL_TOLERANCE_M)
@@ -144,10 +154,11 @@ def _flown(
 
 
 def _timing(
-    plan: PlannedFlight, tracks: Sequence[Track], releases: Releases
+    plan: PlannedFlight, vehicles: Sequence[VehicleLog], releases: Releases
 ) -> tuple[Timing, NDArray[np.float64], NDArray[np.float64]]:
     """Timing, the report's mission times and each drone's progress there (N, 3)."""
-    arrival = _arrivals(plan, tracks, releases)
+    tracks = [v.estimated for v in vehicles]
+    arrival = _arrivals(plan, vehicles, releases)
     last = max(arrival)
     horizon = (last if np.isfinite(last) else plan.duration * 2.0) + END_MARGIN_S
     t = np.arange(0.0, horizon, 1.0 / REPORT_RATE_HZ)
@@ -186,7 +197,6 @@ def _source_figures(
 ) -> tuple[SourceFigures, dict[str, list[Any]]]:
     problem = plan.resolved.problem
     system = problem.system
-    real = problem.validity.with_clearance(0.0)
     plan_t, plan_drones = plan.progress_samples()
     flown = _flown(tracks, releases, t)
     in_time = np.linalg.norm(flown - plan.drones_at(t), axis=-1)  # (N, 3)
@@ -207,17 +217,26 @@ def _source_figures(
     rebuilt = configuration_from_drone_positions(system, flown, initial=initial)
     statics = evaluate_statics(system, rebuilt.q)
     feasible = statics.feasible & rebuilt.converged
+    # Each sample against the real obstacles, but for the surfaces a lift-off or set-down
+    # is meant to touch during its window.
+    surfaces = [(), *(w.surfaces for w in plan.contact_windows)]
+    checkers = {s: plan.real_validity(s) for s in set(surfaces)}
+    which = [next((w.surfaces for w in plan.contact_windows if w.start <= x <= w.end), ())
+             for x in t]  # fmt: skip
     free = np.zeros(len(t), dtype=bool)
-    free[feasible] = real.collision.collision_free(rebuilt.q[feasible])
+    closest = []
+    for n, q in enumerate(rebuilt.q):
+        checker = checkers[which[n]]
+        free[n] = bool(feasible[n] and checker.collision.collision_free(q)[0])
+        closest.append(checker.collision.closest(q))
     safe = feasible & free
-    closest = [real.collision.closest(q) for q in rebuilt.q]
     distance = np.array([c.distance for c in closest])
     worst = int(np.argmin(distance))
     first_unsafe = ""
     if not safe.all():
         n = int(np.flatnonzero(~safe)[0])
-        why = real.explain(rebuilt.q[n]) if rebuilt.converged[n] else "no configuration fits"
-        first_unsafe = f"at {t[n]:.2f} s: {why}"
+        reason = checkers[which[n]].explain(rebuilt.q[n])
+        first_unsafe = f"at {t[n]:.2f} s: {reason if rebuilt.converged[n] else 'no pose fits'}"
     finite = np.isfinite(statics.slack_margin).all(axis=1)
     figures = SourceFigures(
         source=source,
@@ -263,7 +282,7 @@ def flight_report(
     parameter_differences: Sequence[str] = (),
 ) -> FlightReport:
     """The report of a flight (module docstring)."""
-    timing, t, progress = _timing(plan, [v.estimated for v in vehicles], releases)
+    timing, t, progress = _timing(plan, vehicles, releases)
     estimated, estimated_series = _source_figures(
         "estimated", plan, [v.estimated for v in vehicles], releases, t
     )
