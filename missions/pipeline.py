@@ -17,6 +17,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from flycrane.kinematics import drone_positions_from_configuration
 from flycrane.planning.planners import plan
 from flycrane.planning.result import PlanningProgress
 from flycrane.profiles import path_profile, plot_path_profile
@@ -178,7 +179,8 @@ def run_task(
     tracks = {
         "time": flight.time.tolist(),
         "configurations": flight.q.tolist(),
-        "drones_enu": flight.drones.tolist(),
+        "drones_enu": drone_positions_from_configuration(system, flight.q).tolist(),
+        "drones_stored_enu": flight.drones.tolist(),  # as ArduPilot stores the waypoints
         "drones_wgs84": np.stack([lat, lon, alt], axis=-1).tolist(),
         "speed_limits": [[asdict(limit) for limit in row] for row in flight.limits],
         "annotations": annotations.records(),

@@ -31,8 +31,6 @@ from missions.autopilots.spline import AccelLimits, SpeedLimits, Tracking
 MIN_GROUND_SPEED = 0.20
 #: WPNAV_ACCEL and WPNAV_ACCEL_Z bounds (ArduCopter's parameter ranges) [m/s^2].
 ACCEL_RANGE = (0.5, 5.0)
-#: ATC_INPUT_TC, ArduCopter's default [s]: it sets the S-curve's jerk pulse (twice it).
-ATC_INPUT_TC = 0.15
 
 
 @dataclass(frozen=True)

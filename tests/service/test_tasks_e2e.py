@@ -51,8 +51,13 @@ def test_rescue_is_planned_and_every_artifact_is_served(done, tmp_path):
         "mission.mcap",
         "profile.png",
         "summary.json",
+        "task.json",
         "bundle.zip",
-    } | {f"drone{k}.{ext}" for k in (1, 2, 3) for ext in ("waypoints", "plan", "mission.json")}
+    } | {
+        f"drone{k}.{ext}"
+        for k in (1, 2, 3)
+        for ext in ("waypoints", "plan", "mission.json", "parm")
+    }
     assert names == expected
     for k in (1, 2, 3):
         text = client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.waypoints").text
