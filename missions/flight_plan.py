@@ -89,9 +89,16 @@ class FlightPlan:
         return np.interp(t, self.time[: len(self.track_time)], self.track_time)
 
     def retimed(self, track: Track) -> Track:
-        """The dense plan on mission time (the inverse of :meth:`progress_time`)."""
+        """The dense plan on mission time (the inverse of :meth:`progress_time`), with the
+        set-down's descent to the goal at its end if there is one."""
         mission = np.interp(track.time, self.track_time, self.time[: len(self.track_time)])
-        return Track(mission, track.q, track.drones)
+        if self.set_down is None:
+            return Track(mission, track.q, track.drones)
+        return Track(
+            np.append(mission, self.time[-1]),
+            np.concatenate([track.q, self.q[-1:]]),
+            np.concatenate([track.drones, self.drones[-1:]]),
+        )
 
 
 def stored_positions(enu: NDArray[np.float64], options: MissionOptions) -> NDArray[np.float64]:
