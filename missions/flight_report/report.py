@@ -18,8 +18,9 @@ on mission time (:mod:`.alignment`) at :data:`REPORT_RATE_HZ`:
 
 The verdict (:class:`Verdict`) is safe when every reconstructed configuration of the
 safety source (the truth where there is one) is feasible and collision-free, the drones
-were released within the plan's start-offset tolerance and stayed within it in progress,
-and every vehicle flew with the parameters the plan assumes (when the flight says so).
+were released within the plan's start-offset tolerance and stayed within it in progress
+(p95: progress is a noisy measure where drones move slowly), and every vehicle flew with
+the parameters the plan assumes (when the flight says so).
 """
 
 from __future__ import annotations
@@ -46,8 +47,9 @@ REPORT_RATE_HZ = 10.0
 ARRIVAL_TOLERANCE_M = 0.02
 #: Progress is defined where the drone's commanded speed is at least this [m/s]: a
 #: hovering drone is equally near every instant of its hover, and a slow one's progress is
-#: dominated by the position estimate's noise (3 cm at 5 cm/s is 0.6 s).
-MOVING_SPEED = 0.1
+#: dominated by the position estimate's noise (2 cm at 10 cm/s is 0.2 s: a set-down's
+#: last centimetres showed 0.5 s of spread in SITL while the drones were in step).
+MOVING_SPEED = 0.2
 #: After the last arrival, this much of the hold is judged too [s].
 END_MARGIN_S = 1.0
 
@@ -169,8 +171,8 @@ def _timing(
     for k in range(3):
         index = forward_progress(plan_drones[:, k], flown[:, k])
         progress[:, k] = np.where(moving[index, k] >= MOVING_SPEED, plan_t[index], np.nan)
-    spread = np.nanmax(progress, axis=1) - np.nanmin(progress, axis=1)
-    spread = spread[np.isfinite(spread)]
+    defined = np.isfinite(progress).sum(axis=1) >= 2  # two drones moving: a spread
+    spread = np.nanmax(progress[defined], axis=1) - np.nanmin(progress[defined], axis=1)
     timing = Timing(
         flown_duration=last,
         arrival=(arrival[0], arrival[1], arrival[2]),
@@ -300,10 +302,10 @@ def flight_report(
         reasons.append(
             f"release spread {releases.spread:.3f} s beyond the plan's {tolerance:.3f} s"
         )
-    if timing.progress_spread_max > tolerance:
+    if timing.progress_spread_p95 > tolerance:
         reasons.append(
-            f"drones {timing.progress_spread_max:.3f} s apart in progress, beyond the plan's "
-            f"{tolerance:.3f} s"
+            f"drones {timing.progress_spread_p95:.3f} s apart in progress (p95), beyond the "
+            f"plan's {tolerance:.3f} s"
         )
     reasons += [f"parameter: {p}" for p in parameter_differences]
     return FlightReport(

@@ -140,6 +140,7 @@ class SitlFlight:
     vehicles: tuple[VehicleFlight, ...]
     parameters: dict[str, dict[str, float]]  #: what was set, per vehicle
     release_delays: tuple[float, ...]
+    parameter_differences: tuple[str, ...]  #: read back unlike the plan's .parm
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -354,6 +355,13 @@ def _fly(
             values.update(options.parameter_overrides[k])
         parameters[link.name] = values
     on_every_vehicle(links, "parameters", lambda v: set_parameters(v, parameters[v.name], policy))
+    # what a ground station does before a flight: read the plan's parameters back
+    differences = tuple(
+        str(check.error())
+        for row in fleet.check_parameters(plan.parameters)
+        for check in row
+        if not check.ok
+    )
     fleet.upload(plan.missions)
     progress = _Progress(links)
     progress.settle_speed = options.settle_speed
@@ -411,4 +419,5 @@ def _fly(
         vehicles=vehicles,
         parameters=parameters,
         release_delays=options.release_delays,
+        parameter_differences=differences,
     )
