@@ -118,16 +118,23 @@ class Fleet:
         self,
         missions: Sequence[DroneMission],
         verification: Verification = Verification.ARDUPILOT,
+        parameters: Sequence[Mapping[str, float]] | None = None,
     ) -> tuple[UploadReport, ...]:
-        """Upload ``missions[i]`` to vehicle ``i``, concurrently, each verified."""
+        """Upload ``missions[i]`` to vehicle ``i``, concurrently, each verified; with
+        ``parameters[i]`` (mission i's ``.parm``) read back and compared
+        (:attr:`UploadReport.parameter_errors`)."""
         if len(missions) != len(self.links):
             raise ValueError(f"{len(missions)} missions for {len(self.links)} vehicles")
-        by_link = dict(zip(self.links, missions, strict=True))
-        return on_every_vehicle(
-            self.links,
-            "upload",
-            lambda link: upload_and_verify(link, by_link[link], self.policy, verification),
-        )
+        expected = list(parameters) if parameters is not None else [{}] * len(missions)
+        if len(expected) != len(self.links):
+            raise ValueError(f"{len(expected)} parameter sets for {len(self.links)} vehicles")
+        index = {link: i for i, link in enumerate(self.links)}
+
+        def upload(link: VehicleLink) -> UploadReport:
+            i = index[link]
+            return upload_and_verify(link, missions[i], self.policy, verification, expected[i])
+
+        return on_every_vehicle(self.links, "upload", upload)
 
     def check_parameters(
         self, expected: Sequence[Mapping[str, float]]
@@ -169,7 +176,9 @@ def upload_to_vehicles(
     missions: Sequence[DroneMission],
     policy: RetryPolicy | None = None,
     verification: Verification = Verification.ARDUPILOT,
+    parameters: Sequence[Mapping[str, float]] | None = None,
 ) -> tuple[UploadReport, ...]:
-    """Connect, upload ``missions[i]`` to ``addresses[i]`` with verification, disconnect."""
+    """Connect, upload ``missions[i]`` to ``addresses[i]`` with verification and the
+    parameter check (:meth:`Fleet.upload`), disconnect."""
     with Fleet.connect(addresses, policy) as fleet:
-        return fleet.upload(missions, verification)
+        return fleet.upload(missions, verification, parameters)
