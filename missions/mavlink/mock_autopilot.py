@@ -20,9 +20,13 @@ Behaviour copied from ArduCopter 4.5 SITL where a ground station can tell the di
 - MAV_CMD_MISSION_START: refused (DENIED) while disarmed, FAILED without a mission or when
   the first nav item is not a takeoff while on the ground ("Auto: Missing Takeoff Cmd");
   accepted without effect while the mission runs (ArduCopter's start_or_resume); it starts
-  from the item set by MISSION_SET_CURRENT, else from seq 1.
+  from the item set by MISSION_SET_CURRENT, else from seq 1, with the vehicle's parameters
+  as they are then.
+- MISSION_SET_CURRENT is confirmed by a MISSION_CURRENT naming the item; while the mission
+  runs, the vehicle jumps there at once (:meth:`~.mock_flight.KinematicFlight.jump`), the
+  release of the three drones from their hold (design.md section 9).
 - Parameters: PARAM_SET, PARAM_REQUEST_READ and PARAM_REQUEST_LIST as ArduPilot answers
-  them (:mod:`.mock_params`).
+  them (:mod:`.mock_params`); the navigation parameters fly the spline legs.
 - Unknown commands: MAV_RESULT_UNSUPPORTED.
 """
 
@@ -52,15 +56,10 @@ from missions.mavlink.messages import (
     mission_item_reached,
     to_mavlink,
 )
-from missions.mavlink.mock_flight import (
-    NAV_COMMANDS,
-    Dynamics,
-    Geodetic,
-    Imperfections,
-    KinematicFlight,
-)
+from missions.mavlink.mock_config import Dynamics, Geodetic, Imperfections
+from missions.mavlink.mock_flight import NAV_COMMANDS, KinematicFlight
 from missions.mavlink.mock_mission import MissionServer, home_item
-from missions.mavlink.mock_params import ParameterStore
+from missions.mavlink.mock_params import ParameterStore, settings_from_parameters
 from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.transport import open_mavlink
 
@@ -379,7 +378,8 @@ class MockAutopilot:
         if 1 <= seq < len(items):
             self._start_seq = seq
             if self.flight.running:
-                self.flight.start(items, seq, self._home.alt_m)
+                self.flight.jump(items, seq, self._home.alt_m)
+                self._current = seq  # until the nav item it runs to reports itself
         return [
             mission_current(self._current if self.flight.running else self._start_seq, len(items))
         ]
@@ -434,5 +434,6 @@ class MockAutopilot:
         navs = [i for i in items[self._start_seq :] if int(i.command) in NAV_COMMANDS]
         if not navs or (self.flight.on_ground and int(navs[0].command) != MavCmd.NAV_TAKEOFF):
             return dialect.MAV_RESULT_FAILED
-        self.flight.start(items, self._start_seq, self._home.alt_m)
+        settings = settings_from_parameters(self.parameters.values)
+        self.flight.start(items, self._start_seq, self._home.alt_m, settings)
         return dialect.MAV_RESULT_ACCEPTED
