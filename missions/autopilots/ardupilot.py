@@ -15,7 +15,14 @@ section 9; ``docs/missions.md`` "What ArduCopter does"):
   arrival, but a release reaches all three within a millisecond.
 - **Speeds**: DO_CHANGE_SPEED ground (param1 1), climb (2) and descent (3) speeds; a ground
   speed below 20 cm/s is ignored (WPNAV_WP_SPEED_MIN), climb and descent speeds have no
-  floor.
+  floor. **Only the first DO item before a leg runs before the leg is set up**: AP_Mission
+  starts one DO item with the nav item and each further one a main-loop tick (2.5 ms)
+  later, after the leg has fixed the speed it may end with (the next leg's entry limit,
+  which a later DO no longer changes). So a leg's exit speed follows the previous leg's
+  limits with only its first DO item applied (:func:`limits_at_setup`): seen in the SITL
+  flights' DataFlash logs ("Mission: 27 ChangeSpeed", "29 SplineWP", "28 ChangeSpeed" 2.5 ms
+  later) and in their speeds (Rescue drone 1 left leg 12 at the 0.19 m/s its old 0.10 m/s
+  descent limit allowed, not the 0.39 m/s of its new 1.5 m/s).
 - **Parameters** (:class:`ArduCopterSettings`, written to each drone's ``.parm`` and
   checked on the vehicle at upload). BARO_GND_TEMP is deliberately absent: changing it on a
   powered vehicle moved SITL's altitude estimate by 27 m (design.md section 9).
@@ -23,7 +30,7 @@ section 9; ``docs/missions.md`` "What ArduCopter does"):
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from missions.autopilots.spline import AccelLimits, SpeedLimits, Tracking
 
@@ -31,6 +38,31 @@ from missions.autopilots.spline import AccelLimits, SpeedLimits, Tracking
 MIN_GROUND_SPEED = 0.20
 #: WPNAV_ACCEL and WPNAV_ACCEL_Z bounds (ArduCopter's parameter ranges) [m/s^2].
 ACCEL_RANGE = (0.5, 5.0)
+#: The order of the DO_CHANGE_SPEED items before a leg (``missions.builder``): ground,
+#: climb, descent speed; a limit gets an item when it changes by more than
+#: :data:`LIMIT_TOLERANCE` (relative).
+SPEED_ORDER = ("horizontal", "up", "down")
+LIMIT_TOLERANCE = 1e-6
+
+
+def changed_limits(previous: SpeedLimits, limits: SpeedLimits) -> tuple[str, ...]:
+    """The limits of ``limits`` that get a DO_CHANGE_SPEED item after ``previous``, in
+    :data:`SPEED_ORDER`."""
+    return tuple(
+        name
+        for name in SPEED_ORDER
+        if abs(getattr(limits, name) - getattr(previous, name))
+        > LIMIT_TOLERANCE * max(getattr(limits, name), getattr(previous, name))
+    )
+
+
+def limits_at_setup(previous: SpeedLimits, limits: SpeedLimits) -> SpeedLimits:
+    """The limits a leg flown with ``limits`` after a leg flown with ``previous`` is set up
+    with: ``previous`` with only the first changed limit applied (module docstring)."""
+    changed = changed_limits(previous, limits)
+    if not changed:
+        return limits
+    return replace(previous, **{changed[0]: getattr(limits, changed[0])})
 
 
 @dataclass(frozen=True)
@@ -46,10 +78,15 @@ class ArduCopterSettings:
     jerk: float = 1.0  #: WPNAV_JERK [m/s^3]
     position_p: float = 1.0  #: PSC_POSXY_P
     velocity_p: float = 2.0  #: PSC_VELXY_P
-    #: How fast the airframe reaches the acceleration it is asked for [s] (not a parameter:
-    #: its attitude response). 0.15 s fits SITL's quad: with it the model's leg times match
-    #: the SITL flights' within a few percent (docs/missions.md, BENCHMARKS.md).
-    accel_lag: float = 0.15
+    position_p_z: float = 1.0  #: PSC_POSZ_P
+    velocity_p_z: float = 5.0  #: PSC_VELZ_P
+    #: How fast the airframe reaches the horizontal and the vertical acceleration it is
+    #: asked for [s] (not parameters: its attitude and thrust response). Calibrated on the
+    #: Rescue and Puzzle SITL flights (tests/missions/data/README.md): with 0.1 and 0.05 s
+    #: the mock's 111 leg times match SITL's within 3.8 % (rms 1.4 %); 0.05-0.15 s and
+    #: 0.02-0.1 s stay within 5.7 %.
+    accel_lag: float = 0.1
+    accel_lag_z: float = 0.05
 
     @classmethod
     def for_acceleration(cls, max_acceleration: float) -> ArduCopterSettings:
@@ -77,6 +114,9 @@ class ArduCopterSettings:
             velocity_p=self.velocity_p,
             accel_lag=self.accel_lag,
             clock_tc=self.accel * 100.0 * 0.01 / self.jerk,
+            position_p_z=self.position_p_z,
+            velocity_p_z=self.velocity_p_z,
+            accel_lag_z=self.accel_lag_z,
         )
 
     def parameters(self) -> dict[str, float]:
@@ -90,6 +130,8 @@ class ArduCopterSettings:
             "WPNAV_JERK": self.jerk,
             "PSC_POSXY_P": self.position_p,
             "PSC_VELXY_P": self.velocity_p,
+            "PSC_POSZ_P": self.position_p_z,
+            "PSC_VELZ_P": self.velocity_p_z,
             "WP_YAW_BEHAVIOR": 0.0,
         }
 
@@ -105,5 +147,7 @@ class ArduCopterSettings:
             "WPNAV_JERK": "the leg clock's reaction to tracking lag (time constant ACCEL/JERK)",
             "PSC_POSXY_P": "the same on all three drones: it sets how much a lagging drone slows",
             "PSC_VELXY_P": "the tracking the plan's timing was modelled with",
+            "PSC_POSZ_P": "the same vertically",
+            "PSC_VELZ_P": "the same vertically",
             "WP_YAW_BEHAVIOR": "0: keep the heading; the default yaws at every corner",
         }

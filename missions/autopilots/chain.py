@@ -3,9 +3,10 @@ point, one set of speed limits per leg (the DO_CHANGE_SPEED items before it), st
 the last point (the final hold).
 
 Each leg is set up when it starts, with the limits in force then; the speed at which it may
-end is the next leg's entry limit computed with the *same* limits (ArduPilot sets the next
-leg up before that leg's DO items run), and the next leg starts at the speed the previous
-one ended with (:mod:`missions.autopilots.spline`).
+end is the next leg's entry limit computed with those limits (ArduPilot sets the next leg up
+before that leg's DO items run), which are the previous leg's with only the first of this
+leg's DO items applied (:func:`~missions.autopilots.ardupilot.limits_at_setup`); the next
+leg starts at the speed the previous one ended with (:mod:`missions.autopilots.spline`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from missions.autopilots.ardupilot import limits_at_setup
 from missions.autopilots.spline import (
     WPNAV_DT,
     AccelLimits,
@@ -49,19 +51,22 @@ def fly_chain(
     points: NDArray[np.float64],
     limits: Sequence[SpeedLimits],
     accel: AccelLimits,
+    initial: SpeedLimits,
     tracking: Tracking | None = None,
     dt: float = WPNAV_DT,
 ) -> ChainFlight:
-    """Fly the spline chain through ``points`` (K, 3) with ``limits[k]`` on leg k, the
-    vehicle following its target as ``tracking`` says."""
+    """Fly the spline chain through ``points`` (K, 3) with ``limits[k]`` on leg k after the
+    ``initial`` limits (WPNAV_SPEED*), the vehicle following its target as ``tracking``
+    says."""
     legs = legs_through(points)
     if len(limits) != len(legs):
         raise ValueError(f"{len(limits)} speed limits for {len(legs)} legs")
     times, positions, speeds, arrival = [np.zeros(1)], [points[:1]], [np.zeros(1)], [0.0]
-    entry, start = 0.0, 0.0
+    entry, start, previous = 0.0, 0.0, initial
     state = vehicle_state(points[0])
     for k, (leg, limit) in enumerate(zip(legs, limits, strict=True)):
-        exit_max = entry_speed_limit(legs[k + 1], limit, accel) if k + 1 < len(legs) else 0.0
+        setup, previous = limits_at_setup(previous, limit), limit
+        exit_max = entry_speed_limit(legs[k + 1], setup, accel) if k + 1 < len(legs) else 0.0
         flown = fly_leg(leg, limit, accel, entry, exit_max, tracking, state, dt)
         state = flown.state
         times.append(start + flown.time[1:])

@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from missions.autopilots.ardupilot import MIN_GROUND_SPEED, ArduCopterSettings
+from missions.autopilots.ardupilot import MIN_GROUND_SPEED, ArduCopterSettings, limits_at_setup
 from missions.autopilots.chain import ChainFlight, fly_chain
 from missions.autopilots.spline import (
     HermiteLeg,
@@ -72,6 +72,7 @@ class FleetSpeeds:
 class _Drone:
     legs: list[HermiteLeg]
     state: NDArray[np.float64]  # the vehicle at the start of the next leg (vehicle_state)
+    limits: SpeedLimits  # those of the previous leg (the WPNAV_SPEED* before the first)
     entry: float = 0.0  # target speed at the start of the next leg [m/s]
     start: float = 0.0  # modelled time of the start of the next leg [s]
 
@@ -112,7 +113,8 @@ class _LegProblem:
         legs, k = self.drone.legs, self.k
         limit = _limit(self.settings.initial_speeds, axis, value)
         accel = self.settings.accel_limits
-        exit_max = entry_speed_limit(legs[k + 1], limit, accel) if k + 1 < len(legs) else 0.0
+        setup = limits_at_setup(self.drone.limits, limit)
+        exit_max = entry_speed_limit(legs[k + 1], setup, accel) if k + 1 < len(legs) else 0.0
         return fly_leg(
             legs[k], limit, accel, self.drone.entry, exit_max, self.settings.tracking,
             self.drone.state,
@@ -170,7 +172,10 @@ def solve_fleet(
     """Times and limits for three drones' chains through ``points`` (K, 3, 3) planned at
     ``planned`` (K,) [s] (module docstring); ``min_durations`` (K-1,) are further lower
     bounds per leg (the platform's angular rate)."""
-    drones = [_Drone(legs_through(points[:, j]), vehicle_state(points[0, j])) for j in range(3)]
+    drones = [
+        _Drone(legs_through(points[:, j]), vehicle_state(points[0, j]), settings.initial_speeds)
+        for j in range(3)
+    ]
     times = [0.0]
     shift = 0.0
     limits: list[list[SpeedLimits]] = [[], [], []]
@@ -193,13 +198,17 @@ def solve_fleet(
             flown = problem.fly(axis, value)
             drone.start += flown.duration
             drone.entry, drone.state = flown.exit_speed, flown.state
-            limits[j].append(_limit(settings.initial_speeds, axis, value))
+            drone.limits = _limit(settings.initial_speeds, axis, value)
+            limits[j].append(drone.limits)
             if status == "early":
                 early.append((j + 1, k + 1))
             elif status == "late":
                 late.append((j + 1, k + 1))
     accel = settings.accel_limits
-    flights = tuple(fly_chain(points[:, j], limits[j], accel, settings.tracking) for j in range(3))
+    flights = tuple(
+        fly_chain(points[:, j], limits[j], accel, settings.initial_speeds, settings.tracking)
+        for j in range(3)
+    )
     return FleetSpeeds(
         np.array(times), tuple(tuple(row) for row in limits), flights, tuple(early), tuple(late)
     )

@@ -24,7 +24,14 @@ vehicle lags its target: its rate is ``0.05 + (v_track - P e) / |v_target|``, cl
 [0, 1] and low-pass filtered with time constant ``0.01 WPNAV_ACCEL / WPNAV_JERK``, where
 ``e`` is how far the vehicle is behind along the track and ``v_track`` its speed along it.
 So the vehicle's own response matters: :class:`Tracking` models it as the position
-controller's two gains and a first-order lag on the acceleration the airframe reaches.
+controller's gains (horizontal and vertical apart, as AC_PosControl has them) and a
+first-order lag on the acceleration the airframe reaches. On a spline leg AC_WPNav hands the
+position controller the target's position and velocity but **no acceleration** (its
+``target_accel`` stays zero: read in AC_WPNav 4.5, and every desired acceleration in the
+SITL flights' PSC logs is 0 while the desired speed changes at up to 1.3 m/s^2), so the
+vehicle feels a speed change only through its velocity error and overshoots a braking
+target: that keeps it ahead of the target at the end of a slow stop, where a feed-forward
+model had it catch up and slow the clock (``docs/missions.md``, the mock's calibration).
 """
 
 from __future__ import annotations
@@ -203,11 +210,12 @@ def _fly(c, vxy, vup, vdn, axy, az, entry, exit_max, dt, max_steps, state, lag):
     """Step the target along a leg (module docstring), with the vehicle following it.
 
     ``state`` is the vehicle's position, velocity, acceleration and the leg clock's scaler
-    (10 numbers), updated in place; ``lag`` the tracking model's position and velocity gains,
-    acceleration time constant and the scaler's filter time constant (tau <= 0: a vehicle
-    exactly on its target, the scaler always 1). Returns u, the target speed and the vehicle
-    position after every step."""
-    kp, kv, tau, tc = lag[0], lag[1], lag[2], lag[3]
+    (10 numbers), updated in place; ``lag`` the tracking model (:meth:`Tracking.array`:
+    horizontal position and velocity gains and acceleration time constant, the scaler's
+    filter time constant, the same three vertically; tau <= 0: a vehicle exactly on its
+    target, the scaler always 1). Returns u, the target speed and the vehicle position after
+    every step."""
+    kp, tau, tc = lag[0], lag[2], lag[3]
     u_out = np.empty(max_steps + 1)
     v_out = np.empty(max_steps + 1)
     x_out = np.empty((max_steps + 1, 3))
@@ -254,18 +262,22 @@ def _fly(c, vxy, vup, vdn, axy, az, entry, exit_max, dt, max_steps, state, lag):
             du = math.sqrt(2.0 * step / acc_norm)
         else:
             du = (6.0 * step / jerk_norm) ** (1.0 / 3.0)
-        previous = v
         v = min(max(limit, v - along * step_dt), v + along * step_dt)
         u = min(u + du, 1.0)
         for i in range(3):
             target[i] = c[0, i] + u * (c[1, i] + u * (c[2, i] + u * c[3, i]))
         if tau > 0.0:
             # the position controller: velocity command from the position error, then the
-            # acceleration command, which the airframe reaches with a first-order lag
+            # acceleration command (no feed-forward, module docstring), which the airframe
+            # reaches with a first-order lag; horizontal axes, then the vertical one
             for i in range(3):
-                command = unit[i] * v + kp * (target[i] - state[i])
-                wanted = unit[i] * (v - previous) / dt + kv * (command - state[3 + i])
-                state[6 + i] += (wanted - state[6 + i]) * dt / tau
+                gains = 0 if i < 2 else 4
+                command = unit[i] * v + lag[gains] * (target[i] - state[i])
+                wanted = lag[gains + 1] * (command - state[3 + i])
+                if lag[gains + 2] > 0.0:
+                    state[6 + i] += (wanted - state[6 + i]) * dt / lag[gains + 2]
+                else:
+                    state[6 + i] = wanted
                 state[3 + i] += state[6 + i] * dt
                 state[i] += state[3 + i] * dt
         else:
@@ -293,20 +305,33 @@ def entry_speed_limit(leg: HermiteLeg, speed: SpeedLimits, accel: AccelLimits) -
 class Tracking:
     """How a vehicle follows its target, and how its leg clock reacts (module docstring).
 
-    ``position_p`` and ``velocity_p`` are the position controller's gains (PSC_POSXY_P,
-    PSC_VELXY_P); ``accel_lag`` the time constant [s] with which the airframe reaches the
-    acceleration it is asked for (its attitude response; calibrated on SITL flights, see
-    :data:`SITL_TRACKING`); ``clock_tc`` the leg clock's filter, 0.01 WPNAV_ACCEL [cm/s^2] /
-    WPNAV_JERK [m/s^3] [s]. ``accel_lag = 0`` is a vehicle exactly on its target.
+    ``position_p`` and ``velocity_p`` are the position controller's horizontal gains
+    (PSC_POSXY_P, PSC_VELXY_P), ``position_p_z`` and ``velocity_p_z`` its vertical ones
+    (PSC_POSZ_P, PSC_VELZ_P); ``accel_lag`` and ``accel_lag_z`` the time constants [s] with
+    which the airframe reaches the horizontal acceleration it is asked for (its attitude
+    response) and the vertical one (its thrust); ``clock_tc`` the leg clock's filter, 0.01
+    WPNAV_ACCEL [cm/s^2] / WPNAV_JERK [m/s^3] [s]; the clock compares the along-track error
+    with ``position_p`` (AC_WPNav uses the horizontal gain). ``accel_lag = 0`` is a vehicle
+    exactly on its target; ``accel_lag_z = 0`` alone, one whose thrust follows at once. The
+    lags are calibrated on SITL flights
+    (:class:`~missions.autopilots.ardupilot.ArduCopterSettings`).
     """
 
     position_p: float = 1.0
     velocity_p: float = 2.0
     accel_lag: float = 0.0
     clock_tc: float = 2.0
+    position_p_z: float = 1.0
+    velocity_p_z: float = 5.0
+    accel_lag_z: float = 0.0
 
     def array(self) -> NDArray[np.float64]:
-        return np.array([self.position_p, self.velocity_p, self.accel_lag, self.clock_tc])
+        return np.array(
+            [
+                self.position_p, self.velocity_p, self.accel_lag, self.clock_tc,
+                self.position_p_z, self.velocity_p_z, self.accel_lag_z,
+            ]
+        )  # fmt: skip
 
 
 def vehicle_state(position: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -356,4 +381,4 @@ def fly_leg(
         accel.vertical, float(entry_speed), float(exit_speed_max), dt, int(max_time / dt),
         state, tracking.array(),
     )  # fmt: skip
-    return LegFlight(np.arange(len(u)) * dt, u, v, x, state)
+    return LegFlight(np.linspace(0.0, (len(u) - 1) * dt, len(u)), u, v, x, state)

@@ -20,7 +20,13 @@ Behaviour copied from ArduCopter 4.5 SITL where a ground station can tell the di
 - MAV_CMD_MISSION_START: refused (DENIED) while disarmed, FAILED without a mission or when
   the first nav item is not a takeoff while on the ground ("Auto: Missing Takeoff Cmd");
   accepted without effect while the mission runs (ArduCopter's start_or_resume); it starts
-  from the item set by MISSION_SET_CURRENT, else from seq 1.
+  from the item set by MISSION_SET_CURRENT, else from seq 1, with the vehicle's parameters
+  as they are then.
+- MISSION_SET_CURRENT is confirmed by a MISSION_CURRENT naming the item; while the mission
+  runs, the vehicle jumps there at once (:meth:`~.mock_flight.KinematicFlight.jump`), the
+  release of the three drones from their hold (design.md section 9).
+- Parameters: PARAM_SET, PARAM_REQUEST_READ and PARAM_REQUEST_LIST as ArduPilot answers
+  them (:mod:`.mock_params`); the navigation parameters fly the spline legs.
 - Unknown commands: MAV_RESULT_UNSUPPORTED.
 """
 
@@ -29,6 +35,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,14 +56,10 @@ from missions.mavlink.messages import (
     mission_item_reached,
     to_mavlink,
 )
-from missions.mavlink.mock_flight import (
-    NAV_COMMANDS,
-    Dynamics,
-    Geodetic,
-    Imperfections,
-    KinematicFlight,
-)
+from missions.mavlink.mock_config import Dynamics, Geodetic, Imperfections
+from missions.mavlink.mock_flight import NAV_COMMANDS, KinematicFlight
 from missions.mavlink.mock_mission import MissionServer, home_item
+from missions.mavlink.mock_params import ParameterStore, settings_from_parameters
 from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.transport import open_mavlink
 
@@ -90,6 +93,7 @@ _MISSION_PROTOCOL = frozenset(
         "MISSION_ACK",
     }
 )
+_PARAMETER_PROTOCOL = frozenset({"PARAM_SET", "PARAM_REQUEST_READ", "PARAM_REQUEST_LIST"})
 
 
 @dataclass(frozen=True)
@@ -99,7 +103,8 @@ class MockConfig:
     ``boot_no_space_s`` is how long after start MISSION_COUNT gets MAV_MISSION_NO_SPACE and
     arming is refused (ArduCopter booting); ``max_items`` the largest mission accepted;
     ``request_int`` asks for upload items with MISSION_REQUEST_INT (PX4-like) instead of
-    ArduCopter's MISSION_REQUEST.
+    ArduCopter's MISSION_REQUEST; ``parameters`` replace ArduCopter's defaults at boot
+    (:class:`~.mock_params.ParameterStore`, ArduPilot's units).
     """
 
     system_id: int = 1
@@ -112,8 +117,10 @@ class MockConfig:
     dynamics: Dynamics = field(default_factory=Dynamics)
     imperfections: Imperfections = field(default_factory=Imperfections)
     faults: FaultInjection = field(default_factory=FaultInjection)
+    parameters: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        ParameterStore(self.parameters)  # raises InputError naming an unknown parameter
         problems = []
         if not 1 <= self.system_id <= 255:
             problems.append(FieldProblem("system_id", f"must be in 1..255, got {self.system_id}"))
@@ -175,6 +182,7 @@ class MockAutopilot:
         self._server = MissionServer(
             self.own, self._home_item, self.config.max_items, self.config.request_int
         )
+        self.parameters = ParameterStore(self.config.parameters)
         self.armed = False
         self._current = 0
         self._start_seq = 1
@@ -354,6 +362,8 @@ class MockAutopilot:
             return self._server.handle(msg, self._time, self._booting())
         if kind == "MISSION_SET_CURRENT":
             return self._set_current(msg.seq)
+        if kind in _PARAMETER_PROTOCOL:
+            return self.parameters.handle(msg)
         if kind == "COMMAND_LONG":
             result = self._command(msg)
             return [command_ack(msg.command, result, sender)]
@@ -368,7 +378,8 @@ class MockAutopilot:
         if 1 <= seq < len(items):
             self._start_seq = seq
             if self.flight.running:
-                self.flight.start(items, seq, self._home.alt_m)
+                self.flight.jump(items, seq, self._home.alt_m)
+                self._current = seq  # until the nav item it runs to reports itself
         return [
             mission_current(self._current if self.flight.running else self._start_seq, len(items))
         ]
@@ -423,5 +434,6 @@ class MockAutopilot:
         navs = [i for i in items[self._start_seq :] if int(i.command) in NAV_COMMANDS]
         if not navs or (self.flight.on_ground and int(navs[0].command) != MavCmd.NAV_TAKEOFF):
             return dialect.MAV_RESULT_FAILED
-        self.flight.start(items, self._start_seq, self._home.alt_m)
+        settings = settings_from_parameters(self.parameters.values)
+        self.flight.start(items, self._start_seq, self._home.alt_m, settings)
         return dialect.MAV_RESULT_ACCEPTED

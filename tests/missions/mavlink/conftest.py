@@ -12,7 +12,7 @@ import pytest
 
 from missions.items import DroneMission, MavCmd, MavFrame, MissionItem
 from missions.mavlink.mock_autopilot import MockAutopilot, MockConfig
-from missions.mavlink.mock_flight import Geodetic
+from missions.mavlink.mock_config import Geodetic
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.sim_clock import SimClock
 
