@@ -36,22 +36,19 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from missions.autopilots.ardupilot import changed_limits
 from missions.autopilots.spline import SpeedLimits
 from missions.flight_plan import FlightPlan
-from missions.geodesy import degrees_to_int, geodetic_from_enu
+from missions.geodesy import degrees_to_int, geodetic_from_enu, mission_altitude
 from missions.items import DroneMission, MavCmd, MavFrame, MissionItem
 from missions.options import MissionOptions
 
-#: DO_CHANGE_SPEED speed types (param1).
-GROUND_SPEED, CLIMB_SPEED, DESCENT_SPEED = 1, 2, 3
-_SPEED_TYPES = ((GROUND_SPEED, "horizontal"), (CLIMB_SPEED, "up"), (DESCENT_SPEED, "down"))
-#: A limit is sent again when it differs from the previous leg's by more than this (float32
-#: travels 7 digits; a change below that cannot be sent anyway) [relative].
-LIMIT_TOLERANCE = 1e-6
+#: DO_CHANGE_SPEED speed types (param1) of each limit.
+SPEED_TYPE = {"horizontal": 1, "up": 2, "down": 3}
 
 
 def _position_item(
-    command: MavCmd, lat: float, lon: float, z: float, frame: MavFrame, **params: float
+    command: MavCmd, lat: float, lon: float, z: float, frame: MavFrame
 ) -> MissionItem:
     return MissionItem(
         seq=0,
@@ -60,7 +57,6 @@ def _position_item(
         x=int(degrees_to_int(lat)),
         y=int(degrees_to_int(lon)),
         z=float(z),
-        **params,
     )
 
 
@@ -69,9 +65,8 @@ def _enu_item(
 ) -> MissionItem:
     lat, lon, amsl = geodetic_from_enu(enu, options.origin)
     relative = options.altitude_frame == "relative"
-    return _position_item(
-        command, float(lat), float(lon), float(enu[2] if relative else amsl), frame
-    )
+    z = mission_altitude(enu[2] if relative else amsl)
+    return _position_item(command, float(lat), float(lon), float(z), frame)
 
 
 def _speed_item(speed_type: int, speed: float) -> MissionItem:
@@ -86,13 +81,10 @@ def _speed_item(speed_type: int, speed: float) -> MissionItem:
 
 
 def speed_items(previous: SpeedLimits, limits: SpeedLimits) -> list[MissionItem]:
-    """DO_CHANGE_SPEED items for every limit of ``limits`` that differs from ``previous``."""
-    items = []
-    for speed_type, name in _SPEED_TYPES:
-        value, before = getattr(limits, name), getattr(previous, name)
-        if abs(value - before) > LIMIT_TOLERANCE * max(value, before):
-            items.append(_speed_item(speed_type, value))
-    return items
+    """DO_CHANGE_SPEED items for every limit of ``limits`` that differs from ``previous``,
+    in the order ArduCopter's model expects them (:func:`changed_limits`)."""
+    return [_speed_item(SPEED_TYPE[name], getattr(limits, name))
+            for name in changed_limits(previous, limits)]  # fmt: skip
 
 
 def build_missions(plan: FlightPlan, options: MissionOptions) -> list[DroneMission]:
@@ -101,7 +93,7 @@ def build_missions(plan: FlightPlan, options: MissionOptions) -> list[DroneMissi
     relative = options.altitude_frame == "relative"
     frame = MavFrame.GLOBAL_RELATIVE_ALT_INT if relative else MavFrame.GLOBAL_INT
     lat, lon, amsl = geodetic_from_enu(plan.drones, origin)  # (K, 3) each
-    height = plan.drones[..., 2] if relative else amsl
+    height = mission_altitude(plan.drones[..., 2] if relative else amsl)
     start = plan.drones[0]
     ground = np.concatenate([start[:, :2], np.zeros((3, 1))], axis=1)
     home_lat, home_lon, home_amsl = geodetic_from_enu(ground, origin)

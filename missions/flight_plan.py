@@ -70,7 +70,8 @@ class FlightPlan:
     q: NDArray[np.float64]  #: (W, 9) planned configurations at the waypoints
     drones: NDArray[np.float64]  #: (W, 3, 3) waypoints as the autopilot stores them [m]
     limits: tuple[tuple[SpeedLimits, ...], ...]  #: [drone][leg]
-    motion: DroneMotion  #: what the autopilots will fly
+    motion: DroneMotion  #: what the autopilots will fly: their targets
+    vehicles: DroneMotion  #: where the modelled vehicles following those targets will be
     settings: ArduCopterSettings
     early: tuple[tuple[int, int], ...]  #: (drone, leg) flown faster than planned (1-based)
     max_platform_deviation: float  #: over the modelled flight [m]
@@ -260,6 +261,7 @@ def plan_flight(
         drones=waypoints.drones,
         limits=fleet.limits,
         motion=trial.motion,
+        vehicles=DroneMotion.from_chains(fleet.flights, fleet.times, vehicles=True),
         settings=settings,
         early=fleet.early,
         max_platform_deviation=float(trial.check.platform_deviation.max()),

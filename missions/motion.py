@@ -1,10 +1,11 @@
-"""Where the drones are told to be: each drone's commanded position on one time base.
+"""Where the drones are told to be, or will be: each drone's position on one time base.
 
 Mission time is zero at the release. :class:`DroneMotion` holds dense samples of the three
-drones' commanded positions (the autopilot's target, as the mission model flies it) and
-answers "where is drone j at time t", also with a clock of its own per drone (a drone that
-started late or flies slower, for the timing tolerance). Everything that judges a mission
-before it is flown (leg checks, timing tolerance) and after (the flight report) asks it.
+drones' positions (the autopilot's target as the mission model flies it, or the modelled
+vehicle following it, :mod:`missions.autopilots.chain`) and answers "where is drone j at
+time t", also with a clock of its own per drone (a drone that started late or flies slower,
+for the timing tolerance). Everything that judges a mission before it is flown (leg checks,
+timing tolerance: the targets) and after (the flight report: the vehicles) asks it.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ def formation_progress(
 
 @dataclass(frozen=True)
 class DroneMotion:
-    """Commanded positions of three drones on mission time, and the planned waypoints."""
+    """Positions of three drones on mission time, and the planned waypoints."""
 
     time: NDArray[np.float64]  #: (N,) [s]
     drones: NDArray[np.float64]  #: (N, 3, 3) ENU [m]
@@ -82,12 +83,18 @@ class DroneMotion:
 
     @classmethod
     def from_chains(
-        cls, flights: Sequence[ChainFlight], waypoint_time: NDArray[np.float64]
+        cls,
+        flights: Sequence[ChainFlight],
+        waypoint_time: NDArray[np.float64],
+        vehicles: bool = False,
     ) -> DroneMotion:
-        """Three drones' modelled chains, resampled every :data:`MOTION_STEP_S`."""
+        """Three drones' modelled chains, resampled every :data:`MOTION_STEP_S` until the
+        last arrival: their targets (what the autopilots are told), or with ``vehicles``
+        where the modelled vehicles following them will be."""
         end = max(float(f.time[-1]) for f in flights)
         t = np.arange(0.0, end + MOTION_STEP_S / 2, MOTION_STEP_S)
-        return cls(t, np.stack([f.at(t) for f in flights], axis=1), np.asarray(waypoint_time))
+        at = [f.vehicle_at if vehicles else f.at for f in flights]
+        return cls(t, np.stack([f(t) for f in at], axis=1), np.asarray(waypoint_time))
 
     def as_dict(self) -> dict[str, list]:
         return {

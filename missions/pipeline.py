@@ -187,6 +187,7 @@ def run_task(
         "timing_tolerance": tolerance.as_dict(),
         "dense": {"time": track.time.tolist(), "configurations": track.q.tolist()},
         "motion": flight.motion.as_dict(),
+        "vehicle_motion": flight.vehicles.as_dict(),
         "lift_off": resolved.lift_off.as_dict() if resolved.lift_off else None,
         "set_down": _set_down_summary(flight.set_down),
     }

@@ -7,6 +7,11 @@ end is the next leg's entry limit computed with those limits (ArduPilot sets the
 before that leg's DO items run), which are the previous leg's with only the first of this
 leg's DO items applied (:func:`~missions.autopilots.ardupilot.limits_at_setup`); the next
 leg starts at the speed the previous one ended with (:mod:`missions.autopilots.spline`).
+
+Both the target and the modelled vehicle are kept: the vehicle is where the drone will be
+(on the Rescue and Puzzle SITL flights it was nearer the flown positions than the target
+was: p95 0.07-0.14 m against 0.08-0.20 m, BENCHMARKS.md), so plans are checked and flights
+judged against it.
 """
 
 from __future__ import annotations
@@ -30,6 +35,10 @@ from missions.autopilots.spline import (
     vehicle_state,
 )
 
+#: How long a vehicle takes to settle onto its last waypoint after the target arrived [s]:
+#: a few time constants of the position controller (1 / PSC_POSXY_P = 1 s).
+SETTLE_S = 2.0
+
 
 @dataclass(frozen=True)
 class ChainFlight:
@@ -40,11 +49,24 @@ class ChainFlight:
     time: NDArray[np.float64]  #: (N,) every step [s]
     position: NDArray[np.float64]  #: (N, 3) the target [m]
     speed: NDArray[np.float64]  #: (N,) the target's [m/s]
+    vehicle: NDArray[np.float64]  #: (N, 3) the modelled vehicle following it [m]
 
     def at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Positions at times ``t`` (held at the ends), (len(t), 3)."""
-        t = np.asarray(t, dtype=float)
-        return np.column_stack([np.interp(t, self.time, self.position[:, i]) for i in range(3)])
+        """Target positions at times ``t`` (held at the ends), (len(t), 3)."""
+        return _interpolate(t, self.time, self.position)
+
+    def vehicle_at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Modelled vehicle positions at times ``t`` (len(t), 3): the vehicle settles onto
+        the last waypoint within :data:`SETTLE_S` of the last arrival, and stays there."""
+        time = np.append(self.time, self.time[-1] + SETTLE_S)
+        return _interpolate(t, time, np.vstack([self.vehicle, self.position[-1:]]))
+
+
+def _interpolate(
+    t: NDArray[np.float64], time: NDArray[np.float64], values: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    t = np.asarray(t, dtype=float)
+    return np.column_stack([np.interp(t, time, values[:, i]) for i in range(3)])
 
 
 def fly_chain(
@@ -62,6 +84,7 @@ def fly_chain(
     if len(limits) != len(legs):
         raise ValueError(f"{len(limits)} speed limits for {len(legs)} legs")
     times, positions, speeds, arrival = [np.zeros(1)], [points[:1]], [np.zeros(1)], [0.0]
+    vehicle = [points[:1]]
     entry, start, previous = 0.0, 0.0, initial
     state = vehicle_state(points[0])
     for k, (leg, limit) in enumerate(zip(legs, limits, strict=True)):
@@ -70,10 +93,8 @@ def fly_chain(
         flown = fly_leg(leg, limit, accel, entry, exit_max, tracking, state, dt)
         state = flown.state
         times.append(start + flown.time[1:])
-        # The target, not the modelled vehicle: its linear tracking model gets the leg
-        # clock's timing right but lags in position more than SITL's copter does (its
-        # target waits for it); tracking error is the position-error model's business.
         positions.append(leg.position(flown.u[1:]))
+        vehicle.append(flown.vehicle[1:])
         speeds.append(flown.speed[1:])
         start += flown.duration
         arrival.append(start)
@@ -84,4 +105,5 @@ def fly_chain(
         np.concatenate(times),
         np.concatenate(positions),
         np.concatenate(speeds),
+        np.concatenate(vehicle),
     )

@@ -44,13 +44,16 @@ class ContactWindow:
 
 @dataclass(frozen=True)
 class PlannedFlight:
-    """The timed waypoints, the dense planned track and the autopilots' modelled motion."""
+    """The timed waypoints, the dense planned track and the modelled vehicles' motion."""
 
     resolved: ResolvedTask
     waypoint_time: NDArray[np.float64]  #: (K,) [s]
     waypoint_drones: NDArray[np.float64]  #: (K, 3, 3) ENU [m]
     track: Track  #: the dense plan: configurations and drone positions on mission time
-    motion: DroneMotion  #: where the autopilots are told to be
+    #: where the model says the vehicles will be (tracks.json's vehicle_motion): each
+    #: drone's progress and its error in time are measured against it, so a drone that lags
+    #: its target as the model predicts (vertical legs lag less) is not out of step
+    motion: DroneMotion
     timing_tolerance: dict[str, float | str]
     end_seq: tuple[int, int, int]  #: each drone's last item: the hold after the last leg
     contact_windows: tuple[ContactWindow, ...] = ()
@@ -66,7 +69,7 @@ class PlannedFlight:
         return self.resolved.problem.validity.with_clearance(0.0).without(surfaces)
 
     def drones_at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Commanded drone positions at mission times ``t`` (len(t), 3, 3)."""
+        """Modelled drone positions at mission times ``t`` (len(t), 3, 3)."""
         return self.motion.at(t)
 
     def configurations_at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -74,7 +77,7 @@ class PlannedFlight:
         return planned_configurations(self.track, np.clip(t, 0.0, self.track.duration))
 
     def progress_samples(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Plan times and commanded drone positions every :data:`PROGRESS_STEP_S`."""
+        """Plan times and modelled drone positions every :data:`PROGRESS_STEP_S`."""
         t = np.arange(0.0, self.duration + PROGRESS_STEP_S / 2, PROGRESS_STEP_S)
         return t, self.drones_at(t)
 
@@ -94,7 +97,7 @@ class PlannedFlight:
             waypoint_time=np.array(tracks["time"]),
             waypoint_drones=np.array(tracks["drones_enu"]),
             track=track,
-            motion=DroneMotion.from_dict(tracks["motion"]),
+            motion=DroneMotion.from_dict(tracks.get("vehicle_motion", tracks["motion"])),
             timing_tolerance=tracks["timing_tolerance"],
             end_seq=_end_seqs(task_dir),
             contact_windows=tuple(

@@ -1,14 +1,16 @@
 """The flight report: how a recorded flight went against its plan, and whether it was safe.
 
 For each source of positions (the autopilots' estimates and, from a simulator, the truth),
-on mission time (:mod:`.alignment`) at :data:`REPORT_RATE_HZ`:
+on mission time (:mod:`.alignment`) at :data:`REPORT_RATE_HZ`, against the plan's
+*modelled* drones (where :mod:`missions.autopilots` says each vehicle will be, lagging its
+autopilot's target as a copter does):
 
 - **timing**: the flown duration (the last drone's arrival within
   :data:`ARRIVAL_TOLERANCE_M` of its last waypoint) against the plan's; the release spread;
-  each drone's *progress* (the plan time of the nearest point of its own commanded path,
+  each drone's *progress* (the plan time of the nearest point of its own modelled path,
   searched forward) and how far apart the drones are in progress;
-- **geometry**: each drone's distance from its commanded position at the same mission time
-  and from its commanded path (at its own progress); the error of the three inter-drone
+- **geometry**: each drone's distance from its modelled position at the same mission time
+  and from its modelled path (at its own progress); the error of the three inter-drone
   distances against the plan at the formation's progress (the plan time whose three drone
   positions are nearest the flown ones), which a delay common to all three leaves alone;
 - **the load**: the configuration reconstructed from the three drones (direct kinematics,
@@ -45,7 +47,7 @@ REPORT_RATE_HZ = 10.0
 #: A drone has arrived when it is this much closer to its last waypoint than where it
 #: settles in the hold after it [m] (an estimate may settle centimetres off the target).
 ARRIVAL_TOLERANCE_M = 0.02
-#: Progress is defined where the drone's commanded speed is at least this [m/s]: a
+#: Progress is defined where the drone's modelled speed is at least this [m/s]: a
 #: hovering drone is equally near every instant of its hover, and a slow one's progress is
 #: dominated by the position estimate's noise (2 cm at 10 cm/s is 0.2 s: a set-down's
 #: last centimetres showed 0.5 s of spread in SITL while the drones were in step).

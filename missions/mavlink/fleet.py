@@ -7,7 +7,9 @@ This is the entry point for the mission builder and the service::
         with fleet.recorder() as recorder:
             fleet.request_position_streams(rate_hz=10)
             fleet.arm()
-            fleet.start()                 # one common MISSION_START
+            fleet.start()                 # one common MISSION_START: take off to the hold
+            ...                           # every vehicle holding (MISSION_CURRENT hold_seq)
+            fleet.release(release_seq)    # all leave the hold at once
             ...
             telemetry = recorder.snapshot()
 
@@ -25,9 +27,16 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 from missions.items import DroneMission
-from missions.mavlink.commands import StartReport, arm, request_position_stream, start_missions
+from missions.mavlink.commands import (
+    ReleaseReport,
+    StartReport,
+    arm,
+    release,
+    request_position_stream,
+    start_missions,
+)
 from missions.mavlink.errors import FleetError, MavlinkError
-from missions.mavlink.params import ParameterCheck, check_parameters
+from missions.mavlink.params import ParameterCheck, set_parameters
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.telemetry import TelemetryRecorder
 from missions.mavlink.transport import VehicleLink
@@ -136,22 +145,18 @@ class Fleet:
 
         return on_every_vehicle(self.links, "upload", upload)
 
-    def check_parameters(
-        self, expected: Sequence[Mapping[str, float]]
+    def set_parameters(
+        self, values: Sequence[Mapping[str, float]]
     ) -> tuple[tuple[ParameterCheck, ...], ...]:
-        """Read ``expected[i]`` (a mission's ``.parm``) from vehicle ``i`` and compare: every
-        check, per vehicle; :attr:`ParameterCheck.ok` is False where a value differs or the
-        vehicle does not know the parameter (logged as a warning)."""
-        if len(expected) != len(self.links):
-            raise ValueError(f"{len(expected)} parameter sets for {len(self.links)} vehicles")
-        by_link = dict(zip(self.links, expected, strict=True))
-        checks = on_every_vehicle(
+        """Set ``values[i]`` (e.g. a mission's ``.parm``) on vehicle ``i``, each confirmed
+        by its read-back (:func:`~missions.mavlink.params.set_parameters`)."""
+        if len(values) != len(self.links):
+            raise ValueError(f"{len(values)} parameter sets for {len(self.links)} vehicles")
+        index = {link: i for i, link in enumerate(self.links)}
+        return on_every_vehicle(
             self.links, "parameters",
-            lambda link: check_parameters(link, by_link[link], self.policy),
+            lambda link: set_parameters(link, values[index[link]], self.policy),
         )  # fmt: skip
-        for check in (c for row in checks for c in row if not c.ok):
-            logger.warning("%s", check.error())
-        return checks
 
     def request_position_streams(self, rate_hz: float) -> None:
         """GLOBAL_POSITION_INT at ``rate_hz`` [Hz] from every vehicle (confirmed arriving)."""
@@ -165,6 +170,11 @@ class Fleet:
     def start(self) -> StartReport:
         """One common MISSION_START to every vehicle (:func:`start_missions`)."""
         return start_missions(self.links, self.policy)
+
+    def release(self, seq: int) -> ReleaseReport:
+        """Release every vehicle at once from its hold into item ``seq`` (:func:`release`:
+        MISSION_SET_CURRENT sent back to back, never re-sent)."""
+        return release(self.links, seq, self.policy)
 
     def recorder(self) -> TelemetryRecorder:
         """A telemetry recorder on these links (start it, or use ``with``)."""

@@ -71,6 +71,7 @@ class SimClock:
         self._lock = threading.Lock()
         self._epoch_monotonic = time.monotonic()
         self._held_since: float | None = None
+        self._stop_step: int | None = None  # no vehicle begins a later step (held(at=...))
         self._done: dict[int, int] = {}  # vehicle -> last step it finished
         self._ids = itertools.count()
         self._frontier = 0  # the last step every vehicle has finished
@@ -96,6 +97,21 @@ class SimClock:
         """Wall-clock duration of ``sim_seconds`` at full pace [s]."""
         return sim_seconds / self.speedup
 
+    def _run_to(self, step: int, timeout_s: float) -> None:
+        """Let the vehicles finish ``step`` and no more; wait until they have."""
+        with self._lock:
+            if step < self._frontier:
+                now = self._frontier * self.step_s
+                raise ValueError(f"{step * self.step_s:.3f} s is past: it is {now:.3f} s")
+            self._stop_step = step
+        deadline = time.monotonic() + timeout_s
+        while self.now() < step * self.step_s - self.step_s / 2:
+            if time.monotonic() > deadline:
+                with self._lock:
+                    self._stop_step = None
+                raise TimeoutError(f"simulated time did not reach {step * self.step_s:.3f} s")
+            time.sleep(PEER_POLL_S)
+
     # --- vehicles -----------------------------------------------------------------------
 
     def join(self) -> tuple[int, int]:
@@ -120,7 +136,9 @@ class SimClock:
         """0 if ``vehicle`` may begin ``step`` now; else how long to wait before asking
         again [s of wall time]."""
         with self._lock:
-            if step > self._frontier + 1:
+            if step > self._frontier + 1 or (
+                self._stop_step is not None and step > self._stop_step
+            ):
                 return PEER_POLL_S
             wall = time.monotonic()
             paced = self._paced(wall)
@@ -142,9 +160,16 @@ class SimClock:
             self._frontier = min(self._done.values())
 
     @contextmanager
-    def held(self) -> Iterator[float]:
+    def held(self, at: float | None = None, timeout_s: float = 10.0) -> Iterator[float]:
         """Stand still inside the block, then run on from where time stopped: everything
-        the vehicles handle meanwhile happens at one simulated instant (yielded, [s])."""
+        the vehicles handle meanwhile happens at one simulated instant (yielded, [s]).
+
+        With ``at``, first run on to that simulated time [s] (rounded to a step; not before
+        now) and stand still there: a ground station's commands at an exact simulated time,
+        e.g. a release deliberately late. ``timeout_s`` bounds the wall-clock wait for it.
+        """
+        if at is not None:
+            self._run_to(round(at / self.step_s), timeout_s)
         with self._lock:
             if self._held_since is not None:
                 raise RuntimeError("the clock is already held")
@@ -156,3 +181,4 @@ class SimClock:
                 assert self._held_since is not None
                 self._epoch_monotonic += time.monotonic() - self._held_since
                 self._held_since = None
+                self._stop_step = None

@@ -8,9 +8,10 @@ missions"), with the simulator's own additions marked:
 2. connect, ask for GLOBAL_POSITION_INT, MISSION_CURRENT and, from SITL, SIM_STATE (the
    simulator's true position) at ``stream_hz``, and wait for every vehicle's position
    estimate (EKF_STATUS_REPORT);
-3. set the parameters of the plan (``drone{k}.parm``) and read them back, plus ARMING_CHECK
-   0 [SITL: no RC];
-4. upload each mission with read-back verification;
+3. set the parameters of the plan (``drone{k}.parm``), each confirmed, plus ARMING_CHECK
+   0 [SITL: no RC] (a test may set wrong ones on purpose);
+4. upload each mission with read-back verification, and read the plan's parameters back
+   (the upload reports every one that differs, ``parameter_differences``);
 5. arm and start all three (MISSION_START): they take off and hold at their start in
    NAV_LOITER_UNLIM;
 6. once all three hover steadily at the hold, release them together: MISSION_SET_CURRENT
@@ -44,7 +45,6 @@ from missions.formats import mission_from_json
 from missions.items import DroneMission, MavCmd
 from missions.mavlink.commands import ReleaseReport, release, set_message_interval
 from missions.mavlink.fleet import Fleet, on_every_vehicle
-from missions.mavlink.params import set_parameters
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.tlog import StretchedClock, TlogWriter
 from missions.mavlink.transport import VehicleLink
@@ -356,15 +356,10 @@ def _fly(
         if k < len(options.parameter_overrides):
             values.update(options.parameter_overrides[k])
         parameters[link.name] = values
-    on_every_vehicle(links, "parameters", lambda v: set_parameters(v, parameters[v.name], policy))
-    # what a ground station does before a flight: read the plan's parameters back
-    differences = tuple(
-        str(check.error())
-        for row in fleet.check_parameters(plan.parameters)
-        for check in row
-        if not check.ok
-    )
-    fleet.upload(plan.missions)
+    fleet.set_parameters([parameters[link.name] for link in links])
+    # the upload reads the plan's parameters back, as it does for a ground station's user
+    uploads = fleet.upload(plan.missions, parameters=plan.parameters)
+    differences = tuple(str(error) for upload in uploads for error in upload.parameter_errors)
     progress = _Progress(links)
     progress.settle_speed = options.settle_speed
     rates = _RateMeter(links)

@@ -59,6 +59,12 @@ def test_home_is_on_the_ground_below_each_drone_start(curved_flight, missions):
         assert abs(home.x - lat * 1e7) <= 0.51 and abs(home.y - lon * 1e7) <= 0.51
 
 
+def stored_centimetres(z: float) -> int:
+    """AP_Mission's ``Location::alt`` of a MISSION_ITEM_INT ``z``: ``packet.z * 100.0f``,
+    a float32 product converted to int32 (truncated)."""
+    return int(np.float32(z) * np.float32(100.0))
+
+
 def test_positions_are_the_plans_stored_waypoints(curved_flight, missions):
     for j, mission in enumerate(missions):
         located = [it for it in mission.items[1:] if it.command != MavCmd.DO_CHANGE_SPEED]
@@ -72,7 +78,7 @@ def test_positions_are_the_plans_stored_waypoints(curved_flight, missions):
         for item, enu in zip(located, points, strict=True):
             lat, lon = approximate_geodetic(enu, OPTIONS.origin)
             assert abs(item.x - lat * 1e7) <= 0.51 and abs(item.y - lon * 1e7) <= 0.51
-            assert item.z == pytest.approx(enu[2], abs=1e-9)
+            assert stored_centimetres(item.z) == round(enu[2] * 100)  # what the plan flies
             assert item.frame == MavFrame.GLOBAL_RELATIVE_ALT_INT
 
 
@@ -80,8 +86,8 @@ def test_amsl_altitudes_add_the_origin_altitude(curved_flight):
     (mission,) = build_missions(curved_flight, MissionOptions(altitude_frame="amsl"))[:1]
     spline = next(it for it in mission.items if it.command == MavCmd.NAV_SPLINE_WAYPOINT)
     assert spline.frame == MavFrame.GLOBAL_INT
-    assert spline.z == pytest.approx(
-        OPTIONS.origin.altitude + curved_flight.drones[1, 0, 2], abs=1e-3
+    assert stored_centimetres(spline.z) == round(
+        (OPTIONS.origin.altitude + curved_flight.drones[1, 0, 2]) * 100
     )
 
 

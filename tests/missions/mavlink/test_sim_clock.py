@@ -118,6 +118,49 @@ def test_a_held_clock_stands_still_and_runs_on_without_a_jump():
     assert allowed - step <= clock.max_lag_steps + 5
 
 
+def test_a_clock_held_at_a_time_runs_to_it_exactly_and_stands_there():
+    """Two vehicles stepping in threads: held 1 s ahead, both have finished exactly that
+    step and begin no further one inside the block; the clock runs on after it."""
+    clock = SimClock(speedup=50.0, step_s=0.02)
+    stop = threading.Event()
+    done: dict[int, int] = {}
+
+    def vehicle() -> None:
+        me, step = clock.join()
+        done[me] = step
+        while not stop.is_set():
+            if clock.may_begin(me, step + 1) == 0.0:
+                step += 1
+                clock.finished(me, step)
+                done[me] = step
+            else:
+                time.sleep(0.0002)
+        clock.leave(me)
+
+    threads = [threading.Thread(target=vehicle) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    try:
+        while len(done) < 2:
+            time.sleep(0.001)
+        target = round(clock.now() / 0.02) + 50
+        with clock.held(at=target * 0.02) as at:
+            assert at == pytest.approx(target * 0.02)
+            time.sleep(0.1)  # 5 s simulated, if the clock were running
+            assert set(done.values()) == {target}
+        deadline = time.monotonic() + 10.0  # runs on: at once, or as soon as the load allows
+        while min(done.values()) <= target and time.monotonic() < deadline:
+            time.sleep(0.001)
+        assert min(done.values()) > target
+        with pytest.raises(ValueError, match="past"):
+            with clock.held(at=target * 0.02):
+                pass
+    finally:
+        stop.set()
+        for thread in threads:
+            thread.join()
+
+
 def test_a_lagging_simulation_never_sprints():
     """After a stall the pacing forgets the debt beyond ``max_lag_steps``."""
     clock = SimClock(speedup=100.0, step_s=0.02, max_lag_steps=5)
