@@ -16,7 +16,7 @@ def _cmd_flight_report(args: argparse.Namespace) -> int:
         report, _ = report_sitl_flight(Path(args.flight))
     out = Path(args.out or args.flight)
     files = write_report(report, out, title=args.flight)
-    print("SAFE" if report.verdict.safe else "UNSAFE: " + "; ".join(report.verdict.reasons))
+    print(report.verdict)
     for name, path in files.items():
         print(f"  {name}: {path}")
     return 0 if report.verdict.safe else 1

@@ -61,7 +61,7 @@ def plot_flight_report(report: FlightReport, out: Path, title: str = "") -> Path
         ax.set_xlabel("mission time [s]")
     for ax in (axes[0, 1], axes[1, 0], axes[1, 1]):
         ax.legend(fontsize=8)
-    verdict = "SAFE" if report.verdict.safe else "UNSAFE: " + "; ".join(report.verdict.reasons)
+    verdict = str(report.verdict)
     figure.suptitle(f"{title}\n{verdict}" if title else verdict, fontsize=11)
     figure.tight_layout()
     figure.savefig(out, dpi=110)

@@ -20,9 +20,14 @@ autopilot's target as a copter does):
 
 The verdict (:class:`Verdict`) is safe when every reconstructed configuration of the
 safety source (the truth where there is one) is feasible and collision-free, the drones
-were released within the plan's start-offset tolerance and stayed within it in progress
-(p95: progress is a noisy measure where drones move slowly), and every vehicle flew with
-the parameters the plan assumes (when the flight says so).
+were released within the plan's start-offset tolerance, and every vehicle flew with the
+parameters the plan assumes (when the flight says so): the load itself, and the two
+conditions the plan's timing tolerance rests on. Drones apart in progress by more than
+that tolerance (p95) are a *warning*, not a verdict: progress is the nearest point of a
+drone's own path, so it mixes timing with the drone's distance from that path and grows
+as speed falls (a Puzzle flight on SITL showed 0.28 s of progress spread where the three
+drones' distances were within 3.4 cm of the plan's, p95); the load's own geometry is the
+evidence that counts.
 """
 
 from __future__ import annotations
@@ -87,6 +92,11 @@ class SourceFigures:
 class Verdict:
     safe: bool
     reasons: tuple[str, ...]  #: why not (empty when safe)
+    warnings: tuple[str, ...] = ()  #: what a person should look at even so
+
+    def __str__(self) -> str:
+        text = "SAFE" if self.safe else "UNSAFE: " + "; ".join(self.reasons)
+        return text + "".join(f" (warning: {w})" for w in self.warnings)
 
 
 @dataclass(frozen=True)
@@ -304,12 +314,13 @@ def flight_report(
         reasons.append(
             f"release spread {releases.spread:.3f} s beyond the plan's {tolerance:.3f} s"
         )
+    reasons += [f"parameter: {p}" for p in parameter_differences]
+    warnings = []
     if timing.progress_spread_p95 > tolerance:
-        reasons.append(
+        warnings.append(
             f"drones {timing.progress_spread_p95:.3f} s apart in progress (p95), beyond the "
             f"plan's {tolerance:.3f} s"
         )
-    reasons += [f"parameter: {p}" for p in parameter_differences]
     return FlightReport(
         planned_duration=plan.duration,
         release_spread=releases.spread,
@@ -317,7 +328,7 @@ def flight_report(
         timing=timing,
         estimated=estimated,
         true=true,
-        verdict=Verdict(not reasons, tuple(reasons)),
+        verdict=Verdict(not reasons, tuple(reasons), tuple(warnings)),
         parameter_differences=tuple(parameter_differences),
         series={
             "time": {"mission": t.tolist()},

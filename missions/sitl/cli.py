@@ -47,7 +47,7 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
         f"{true.inter_drone_error_p95:.3f} m ({true.source}); least clearance "
         f"{true.least_clearance:.3f} m ({true.least_clearance_bodies})"
     )
-    print("SAFE" if report.verdict.safe else "UNSAFE: " + "; ".join(report.verdict.reasons))
+    print(report.verdict)
     print(json.dumps({name: str(path) for name, path in files.items()}))
     return 0 if report.verdict.safe else 1
 

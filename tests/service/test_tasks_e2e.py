@@ -16,8 +16,9 @@ from pymavlink import mavwp
 
 from flycrane.scene import SCENES_DIR
 from missions.formats import mission_from_json
-from missions.mavlink import MockAutopilot, MockConfig, SimClock
+from missions.mavlink import Fleet, MockAutopilot, MockConfig, RetryPolicy, SimClock
 from missions.mavlink.mock_flight import Geodetic
+from missions.parameter_file import parse_parameter_file
 from tests.missions.mavlink.conftest import free_udp_port
 from tests.service.conftest import running_service, wait_finished, wait_status
 
@@ -101,6 +102,22 @@ def test_upload_to_three_mock_autopilots_through_the_api(done):
         mocks.append(MockAutopilot(f"udpin:127.0.0.1:{port}", config, clock).start())
         addresses.append(f"udpout:127.0.0.1:{port}")
     try:
+        # fresh vehicles have ArduCopter's defaults, not the plan's: uploaded, but reported
+        response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": addresses})
+        assert response.status_code == 409, response.text
+        for vehicle in response.json()["vehicles"]:
+            assert not vehicle["ok"] and "uploaded and verified" in vehicle["detail"]
+            differ = {d["name"]: (d["expected"], d["found"])
+                      for d in vehicle["parameter_differences"]}  # fmt: skip
+            assert differ["WPNAV_ACCEL"] == (200.0, 250.0)  # ArduCopter 4.5's default: 250
+            assert "WPNAV_ACCEL should be 200, the vehicle has 250" in vehicle["detail"]
+        # the user loads each drone's .parm (as a ground station would), and uploads again
+        parameters = [
+            parse_parameter_file(client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.parm").text)
+            for k in (1, 2, 3)
+        ]
+        with Fleet.connect(addresses, RetryPolicy(request_timeout_s=0.5)) as fleet:
+            fleet.set_parameters(parameters)
         response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": addresses})
         assert response.status_code == 200, response.text
         assert response.json()["ok"] and all(v["ok"] for v in response.json()["vehicles"])
