@@ -100,7 +100,7 @@ def obstacle_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
     excluded); names and indices are the scene's."""
     bodies = []
     for index, shape in enumerate(scene.grown_obstacles()):
-        body = body_from_shape(shape, shape.name or f"{shape.kind} {index + 1}", base_dir)
+        body = body_from_shape(shape, scene.obstacle_name(index), base_dir)
         placed = fcl.CollisionObject(body.geometry, fcl.Transform(body.rotation, body.center))
         bodies.append(
             Body(

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -184,6 +185,20 @@ class SceneSpec(BaseModel):
                     f"(obstacles {meshes}); give 0 or replace them by boxes, cylinders, spheres"
                 )
         return self
+
+    def obstacle_name(self, index: int) -> str:
+        """How collision reports name obstacle ``index`` (its name, else kind and number)."""
+        shape = self.obstacles[index]
+        return shape.name or f"{shape.kind} {index + 1}"
+
+    def without(self, names: Iterable[str]) -> SceneSpec:
+        """The scene without the obstacles of these names (``"ground"``: without the
+        ground), e.g. where touching them is intended."""
+        names = set(names)
+        kept = tuple(o for i, o in enumerate(self.obstacles) if self.obstacle_name(i) not in names)
+        return self.model_copy(
+            update={"obstacles": kept, "ground": self.ground and "ground" not in names}
+        )
 
     def grown_obstacles(self) -> tuple[Shape, ...]:
         """The obstacles grown by ``collision.obstacle_clearance`` on every side (a box, a

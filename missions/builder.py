@@ -16,17 +16,25 @@ seq   command                   meaning
 ...   DO_CHANGE_SPEED           before a leg, each speed limit that differs from the previous
                                 leg's: ground (param1 1), climb (2), descent (3) [m/s]; the
                                 limit the leg's timing rests on, the others generous
-...   NAV_SPLINE_WAYPOINT       the next timed waypoint, flown without stopping
+...   NAV_SPLINE_WAYPOINT       the next timed waypoint, flown without stopping; with a
+                                set-down the last one is the goal on its surface
 last  NAV_LOITER_UNLIM          hold at the last waypoint (NAV_LAND if ``end = "land"``)
 ====  ========================  ============================================================
 
-A hold at the same place as the last waypoint makes that waypoint a stop, so every drone
-brakes to rest there.
+The item after the last spline waypoint is not a spline and is at the same place, so every
+drone brakes to rest there (ArduPilot's spline leg then ends with a zero tangent). A start
+that lies within the clearance of a surface is reached by the take-off itself, which lifts
+the load (``missions.vertical_legs``).
+
+NAV_DELAY must not stand next to a spline waypoint: ArduCopter takes the next nav item's
+location when it sets a spline up, and a NAV_DELAY has none (seen on 4.5.7 SITL: the spline
+legs before and after one were "reached" at once).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 from missions.autopilots.spline import SpeedLimits
 from missions.flight_plan import FlightPlan
@@ -53,6 +61,16 @@ def _position_item(
         y=int(degrees_to_int(lon)),
         z=float(z),
         **params,
+    )
+
+
+def _enu_item(
+    command: MavCmd, enu: NDArray[np.float64], options: MissionOptions, frame: MavFrame
+) -> MissionItem:
+    lat, lon, amsl = geodetic_from_enu(enu, options.origin)
+    relative = options.altitude_frame == "relative"
+    return _position_item(
+        command, float(lat), float(lon), float(enu[2] if relative else amsl), frame
     )
 
 
@@ -84,7 +102,8 @@ def build_missions(plan: FlightPlan, options: MissionOptions) -> list[DroneMissi
     frame = MavFrame.GLOBAL_RELATIVE_ALT_INT if relative else MavFrame.GLOBAL_INT
     lat, lon, amsl = geodetic_from_enu(plan.drones, origin)  # (K, 3) each
     height = plan.drones[..., 2] if relative else amsl
-    ground = np.concatenate([plan.drones[0, :, :2], np.zeros((3, 1))], axis=1)
+    start = plan.drones[0]
+    ground = np.concatenate([start[:, :2], np.zeros((3, 1))], axis=1)
     home_lat, home_lon, home_amsl = geodetic_from_enu(ground, origin)
     missions = []
     for j in range(3):
@@ -92,8 +111,8 @@ def build_missions(plan: FlightPlan, options: MissionOptions) -> list[DroneMissi
             _position_item(
                 MavCmd.NAV_WAYPOINT, home_lat[j], home_lon[j], home_amsl[j], MavFrame.GLOBAL_INT
             ),
-            _position_item(MavCmd.NAV_TAKEOFF, lat[0, j], lon[0, j], height[0, j], frame),
-            _position_item(MavCmd.NAV_LOITER_UNLIM, lat[0, j], lon[0, j], height[0, j], frame),
+            _enu_item(MavCmd.NAV_TAKEOFF, start[j], options, frame),
+            _enu_item(MavCmd.NAV_LOITER_UNLIM, start[j], options, frame),
         ]
         previous = plan.settings.initial_speeds
         for k, limits in enumerate(plan.limits[j]):

@@ -7,6 +7,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from missions.position_error import PositionErrorModel
+
 
 class GeodeticOrigin(BaseModel):
     """The task frame's origin: ENU (x east, y north, z up) starts here."""
@@ -54,6 +56,14 @@ class MissionOptions(BaseModel):
     )
     start_time_utc: datetime | None = Field(
         None, description="planned release time: the time base of the MCAP log (default: now)"
+    )
+    position_error: Literal["rtk", "sitl", "gnss", "exact"] | PositionErrorModel = Field(
+        "rtk",
+        description="how far each drone may be from where it is told: a preset or bounds; "
+        "the obstacle clearance follows from it (missions.position_error)",
+    )
+    vertical_leg_speed: float = Field(
+        0.1, gt=0, le=0.5, description="[m/s] of lift-off and set-down legs"
     )
     end: Literal["hold", "land"] = Field("hold", description="after the last waypoint")
     altitude_frame: Literal["relative", "amsl"] = "relative"

@@ -17,16 +17,18 @@ from typing import Any, Literal
 
 import numpy as np
 
+from flycrane.kinematics import drone_positions_from_configuration
 from flycrane.planning.planners import plan
 from flycrane.planning.result import PlanningProgress
 from flycrane.profiles import path_profile, plot_path_profile
 from missions.annotations import annotate
 from missions.builder import HOLD_SEQ, RELEASE_SEQ, build_missions
-from missions.flight_plan import plan_flight
+from missions.flight_plan import SetDown, plan_flight
 from missions.formats import dumps, mission_json, qgc_plan, waypoints_text
 from missions.geodesy import geodetic_from_enu
 from missions.mcap_log import LogInputs, write_mcap
 from missions.parameter_file import parameter_file_text
+from missions.position_error import position_error_model
 from missions.task import ResolvedTask, TaskSpec, resolve_task
 from missions.timing_tolerance import timing_tolerance
 from missions.tracks import track_from_path
@@ -71,6 +73,13 @@ def _self_contained(task: TaskSpec, resolved: ResolvedTask) -> dict[str, Any]:
             "goal": tuple(float(v) for v in resolved.goal),
         }
     ).model_dump(mode="json")
+
+
+def _set_down_summary(set_down: SetDown | None) -> dict[str, Any] | None:
+    """A set-down as tracks.json and summary.json give it."""
+    if set_down is None:
+        return None
+    return {**set_down.leg.as_dict(), "start_time": set_down.start, "end_time": set_down.end}
 
 
 def _write(out_dir: Path, name: str, text: str, artifacts: dict[str, str]) -> None:
@@ -131,7 +140,11 @@ def run_task(
     # obstacles, as a flown load is (docs/missions.md, "Clearance").
     clearance = problem.scene.collision.obstacle_clearance
     legs = problem.validity.with_clearance(clearance / 2)
-    flight = plan_flight(system, dense, legs.is_safe, options)
+    set_down = resolved.set_down
+    landing = None
+    if set_down is not None:  # the set-down may touch its surfaces, nothing else
+        landing = problem.validity.with_clearance(0.0).without(set_down.surfaces).is_safe
+    flight = plan_flight(system, dense, legs.is_safe, options, set_down=set_down, landing=landing)
     metrics = planned.metrics.as_dict() if planned.metrics else None
     if not flight.ok:
         outcome = TaskOutcome(
@@ -158,17 +171,24 @@ def run_task(
         "early_legs": [list(e) for e in flight.early],
         "items_per_drone": [len(m.items) for m in missions],
         "release": {"hold_seq": HOLD_SEQ, "release_seq": RELEASE_SEQ},
+        "obstacle_clearance": problem.scene.collision.obstacle_clearance,
+        "position_error": position_error_model(options.position_error).model_dump(),
+        "lift_off": resolved.lift_off.as_dict() if resolved.lift_off else None,
+        "set_down": _set_down_summary(flight.set_down),
     }
     tracks = {
         "time": flight.time.tolist(),
         "configurations": flight.q.tolist(),
-        "drones_enu": flight.drones.tolist(),
+        "drones_enu": drone_positions_from_configuration(system, flight.q).tolist(),
+        "drones_stored_enu": flight.drones.tolist(),  # as ArduPilot stores the waypoints
         "drones_wgs84": np.stack([lat, lon, alt], axis=-1).tolist(),
         "speed_limits": [[asdict(limit) for limit in row] for row in flight.limits],
         "annotations": annotations.records(),
         "timing_tolerance": tolerance.as_dict(),
         "dense": {"time": track.time.tolist(), "configurations": track.q.tolist()},
         "motion": flight.motion.as_dict(),
+        "lift_off": resolved.lift_off.as_dict() if resolved.lift_off else None,
+        "set_down": _set_down_summary(flight.set_down),
     }
     _write(out, "tracks.json", dumps(tracks), artifacts)
     parameters = flight.settings.parameters()

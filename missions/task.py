@@ -24,6 +24,8 @@ from flycrane.planning.problem import PlanningProblem
 from flycrane.scene import Configuration, SceneSpec, load_scene
 from flycrane.system import SystemSpec, problems_from_validation_error, system_preset
 from missions.options import MissionOptions
+from missions.position_error import position_error_model
+from missions.vertical_legs import VerticalLeg, clear_end
 
 Vec3 = tuple[float, float, float]
 
@@ -53,12 +55,18 @@ class TaskSpec(BaseModel):
 
 @dataclass(frozen=True)
 class ResolvedTask:
-    """A task made concrete: the problem and checked start and goal configurations."""
+    """A task made concrete: the problem and the checked configurations to plan between.
+
+    Where the given start or goal lies within the obstacle clearance of a surface, the plan
+    starts or ends at the pose above it, and ``lift_off`` / ``set_down`` is the vertical leg
+    the mission flies between the two (:mod:`missions.vertical_legs`)."""
 
     task: TaskSpec
     problem: PlanningProblem
     start: NDArray[np.float64]
     goal: NDArray[np.float64]
+    lift_off: VerticalLeg | None = None
+    set_down: VerticalLeg | None = None
 
 
 def task_from_dict(data: dict, source: str | None = None) -> TaskSpec:
@@ -112,16 +120,39 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
         Start or goal infeasible, out of bounds or in collision (``what`` says which).
     """
     system, scene, scene_dir = task_specs(task, base_dir)
+    # The plan keeps the clearance the position-error model asks for (or the scene's, if
+    # larger): docs/missions.md "Clearance".
+    clearance = max(
+        scene.collision.obstacle_clearance,
+        position_error_model(task.mission.position_error).obstacle_clearance,
+    )
+    if clearance != scene.collision.obstacle_clearance:
+        try:
+            scene = scene.model_copy(
+                update={
+                    "collision": scene.collision.model_copy(
+                        update={"obstacle_clearance": clearance}
+                    )
+                }
+            )
+            scene = SceneSpec.model_validate(scene.model_dump())
+        except ValidationError as error:
+            raise InputError(
+                [FieldProblem("mission.position_error", p.reason)
+                 for p in problems_from_validation_error(error)]
+            ) from None  # fmt: skip
     problem = PlanningProblem.from_scene(scene, system, scene_dir)
-    ends = []
+    ends, legs = [], []
     ends_given = (("start", task.start, scene.start), ("goal", task.goal, scene.goal))
     for what, given, default in ends_given:
         if isinstance(given, PlatformPose):
+            real = problem.validity.with_clearance(0.0)
             q = configuration_from_pose(
-                problem.space, problem.validity, given.position, given.orientation, what
+                problem.space, real, given.position, given.orientation, what
             )
         else:
             q = np.array(default if given is None else given, dtype=float)
-            problem.validity.require_valid(q, what)
-        ends.append(q)
-    return ResolvedTask(task, problem, ends[0], ends[1])
+        planned, leg = clear_end(q, problem.validity, what)
+        ends.append(planned)
+        legs.append(leg)
+    return ResolvedTask(task, problem, ends[0], ends[1], lift_off=legs[0], set_down=legs[1])

@@ -89,11 +89,20 @@ class UploadCreate(BaseModel):
     )
 
 
+class ParameterDifference(BaseModel):
+    """A vehicle parameter that is not what the drone's ``.parm`` says the plan assumes."""
+
+    name: str
+    expected: float
+    found: float | None = Field(description="null: the vehicle does not answer for it")
+
+
 class VehicleUpload(BaseModel):
     drone: int
     vehicle: str
-    ok: bool
+    ok: bool = Field(description="mission uploaded and verified, parameters as planned")
     detail: str
+    parameter_differences: list[ParameterDifference] = []
 
 
 class UploadPublic(BaseModel):

@@ -14,9 +14,13 @@ Leg by leg from the release, with the model of :mod:`missions.autopilots.spline`
    target being the leg's end time minus the drone's *modelled* arrival at its start, so an
    error on one leg is taken back on the next instead of adding up.
 
-A horizontal limit cannot be set below 20 cm/s (ArduCopter ignores it): such a leg uses its
-vertical limit if it climbs or descends at all; a level leg that should be slower is flown
-at 20 cm/s and reported as early (:attr:`FleetSpeeds.early`).
+A horizontal limit cannot be set below 20 cm/s (ArduCopter ignores it). A mostly horizontal
+leg that must be slower is timed by its climb or descent limit instead, if it climbs or
+descends at all (by a stored centimetre), with its horizontal limit held at the 20 cm/s
+floor rather than generous: where the spline levels off and the vertical limit lets go,
+the floor still bounds the speed. A level leg that should be slower is flown at 20 cm/s and
+reported as early (:attr:`FleetSpeeds.early`), and the flight plan merges it with a
+neighbour where it can (:mod:`missions.flight_plan`).
 """
 
 from __future__ import annotations
@@ -44,8 +48,13 @@ BISECTION_STEPS = 40
 MAX_LIMIT = 5.0
 #: Lowest climb or descent limit searched [m/s].
 MIN_VERTICAL = 1e-3
-#: A leg that climbs or descends at least this much may be timed by its vertical limit [m].
-MIN_VERTICAL_EXTENT = 0.01
+#: A leg may be timed by its vertical limit alone (horizontal generous) if it climbs or
+#: descends at least this much and at least this share of its length: on a nearly level
+#: spline the vertical limit binds only where the curve slopes [m, -].
+MIN_VERTICAL_EXTENT = 0.05
+MIN_VERTICAL_SHARE = 0.3
+#: Less than this and a leg counts as level: altitudes are stored in whole centimetres [m].
+LEVEL = 0.01
 
 
 @dataclass(frozen=True)
@@ -76,6 +85,10 @@ def _axis(chord: NDArray[np.float64]) -> str:
 
 
 def _limit(generous: SpeedLimits, axis: str, value: float) -> SpeedLimits:
+    """The limits with ``axis`` at ``value``: "horizontal", "up", "down", or "up/floor",
+    "down/floor" (the vertical limit binding, the horizontal one at ArduCopter's floor)."""
+    if axis.endswith("/floor"):
+        return replace(generous, horizontal=MIN_GROUND_SPEED, **{axis.split("/")[0]: value})
     return replace(generous, **{axis: value})
 
 
@@ -87,6 +100,14 @@ class _LegProblem:
         leg = drone.legs[k]
         self.chord = leg.destination - leg.origin
         self.axis = _axis(self.chord)
+
+    @property
+    def climbs(self) -> bool:
+        """Whether the leg climbs or descends by at least a stored centimetre."""
+        return abs(float(self.chord[2])) >= LEVEL
+
+    def _vertical(self) -> str:
+        return "up" if self.chord[2] > 0 else "down"
 
     def fly(self, axis: str, value: float) -> LegFlight:
         legs, k = self.drone.legs, self.k
@@ -108,9 +129,16 @@ class _LegProblem:
         component = horizontal if self.axis == "horizontal" else abs(float(self.chord[2]))
         return self.fly(self.axis, max(max_speed * component / share, MIN_VERTICAL)).duration
 
+    @property
+    def vertical_capable(self) -> bool:
+        """Whether the leg may be timed by its climb or descent limit."""
+        rise = abs(float(self.chord[2]))
+        length = float(np.linalg.norm(self.chord))
+        return rise >= MIN_VERTICAL_EXTENT and rise >= MIN_VERTICAL_SHARE * length
+
     def slowest(self) -> float:
         """Longest duration ArduCopter can be made to fly it [s] (inf if unbounded)."""
-        if self.axis != "horizontal" or abs(float(self.chord[2])) >= MIN_VERTICAL_EXTENT:
+        if self.axis != "horizontal" or self.climbs:
             return np.inf
         return self.fly("horizontal", MIN_GROUND_SPEED).duration
 
@@ -118,9 +146,9 @@ class _LegProblem:
         """The binding axis and value that fly the leg in ``target`` [s], and "", "early"
         or "late" where no value does."""
         axis, low = self.axis, (MIN_GROUND_SPEED if self.axis == "horizontal" else MIN_VERTICAL)
-        if axis == "horizontal" and self.fly(axis, low).duration < target:
-            if abs(float(self.chord[2])) >= MIN_VERTICAL_EXTENT:
-                axis, low = ("up" if self.chord[2] > 0 else "down"), MIN_VERTICAL
+        if axis == "horizontal" and self.fly(axis, low).duration < target and self.climbs:
+            axis = self._vertical() if self.vertical_capable else f"{self._vertical()}/floor"
+            low = MIN_VERTICAL
         high = MAX_LIMIT
         if self.fly(axis, low).duration < target:
             return axis, low, "early"

@@ -290,7 +290,10 @@ def _fly(c, vxy, vup, vdn, axy, az, entry, exit_max, dt, max_steps, state, lag):
 
 
 def entry_speed_limit(leg: HermiteLeg, speed: SpeedLimits, accel: AccelLimits) -> float:
-    """The largest speed at the leg's start (SplineCurve's origin speed max) [m/s]."""
+    """The largest speed at the leg's start (SplineCurve's origin speed max) [m/s]; 0 for a
+    zero-length leg, which SplineCurve treats as reached."""
+    if not np.any(leg.destination - leg.origin):
+        return 0.0
     limit = _limits_at(
         leg.coefficients, 0.0, speed.horizontal, speed.up, speed.down,
         accel.horizontal, accel.vertical,
@@ -371,6 +374,8 @@ def fly_leg(
     following it from ``state`` (default: at rest on the leg's origin)."""
     tracking = tracking or Tracking()
     state = vehicle_state(leg.origin) if state is None else np.array(state, dtype=float)
+    if not np.any(leg.destination - leg.origin):  # SplineCurve: a zero-length leg is reached
+        return LegFlight(np.zeros(1), np.ones(1), np.zeros(1), state[None, :3], state)
     u, v, x = _fly(
         leg.coefficients, speed.horizontal, speed.up, speed.down, accel.horizontal,
         accel.vertical, float(entry_speed), float(exit_speed_max), dt, int(max_time / dt),

@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.kinematics import drone_positions_from_configuration
+from flycrane.planning.validity import ValidityChecker
 from missions.motion import DroneMotion
 from missions.task import ResolvedTask, TaskSpec, resolve_task
 from missions.tracks import Track
@@ -22,9 +23,28 @@ from missions.waypoints import planned_configurations
 PROGRESS_STEP_S = 0.02
 
 
+def _end_seqs(task_dir: Path) -> tuple[int, int, int]:
+    """Each drone's last mission item (``drone{k}.mission.json``)."""
+    seqs = []
+    for k in (1, 2, 3):
+        mission = json.loads((task_dir / f"drone{k}.mission.json").read_text(encoding="utf-8"))
+        seqs.append(int(mission["items"][-1]["seq"]))
+    return (seqs[0], seqs[1], seqs[2])
+
+
+@dataclass(frozen=True)
+class ContactWindow:
+    """A set-down: between these mission times, touching these surfaces is the leg's
+    intended end (:mod:`missions.vertical_legs`)."""
+
+    start: float
+    end: float
+    surfaces: tuple[str, ...]
+
+
 @dataclass(frozen=True)
 class PlannedFlight:
-    """The timed waypoints (straight legs between them) and the dense planned track."""
+    """The timed waypoints, the dense planned track and the autopilots' modelled motion."""
 
     resolved: ResolvedTask
     waypoint_time: NDArray[np.float64]  #: (K,) [s]
@@ -32,10 +52,18 @@ class PlannedFlight:
     track: Track  #: the dense plan: configurations and drone positions on mission time
     motion: DroneMotion  #: where the autopilots are told to be
     timing_tolerance: dict[str, float | str]
+    end_seq: tuple[int, int, int]  #: each drone's last item: the hold after the last leg
+    contact_windows: tuple[ContactWindow, ...] = ()
 
     @property
     def duration(self) -> float:
-        return float(self.waypoint_time[-1])
+        """Release to the end of the last leg (a set-down, if any) [s]."""
+        return self.motion.duration
+
+    def real_validity(self, surfaces: tuple[str, ...] = ()) -> ValidityChecker:
+        """The task's validity on the real obstacles (no planning clearance), without the
+        named ``surfaces``."""
+        return self.resolved.problem.validity.with_clearance(0.0).without(surfaces)
 
     def drones_at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """Commanded drone positions at mission times ``t`` (len(t), 3, 3)."""
@@ -68,4 +96,10 @@ class PlannedFlight:
             track=track,
             motion=DroneMotion.from_dict(tracks["motion"]),
             timing_tolerance=tracks["timing_tolerance"],
+            end_seq=_end_seqs(task_dir),
+            contact_windows=tuple(
+                ContactWindow(leg["start_time"], leg["end_time"], tuple(leg["surfaces"]))
+                for leg in [tracks.get("set_down")]
+                if leg is not None
+            ),
         )

@@ -20,13 +20,14 @@ it worked.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 from missions.items import DroneMission
 from missions.mavlink.commands import StartReport, arm, request_position_stream, start_missions
 from missions.mavlink.errors import FleetError, MavlinkError
+from missions.mavlink.params import ParameterCheck, check_parameters
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.telemetry import TelemetryRecorder
 from missions.mavlink.transport import VehicleLink
@@ -117,16 +118,40 @@ class Fleet:
         self,
         missions: Sequence[DroneMission],
         verification: Verification = Verification.ARDUPILOT,
+        parameters: Sequence[Mapping[str, float]] | None = None,
     ) -> tuple[UploadReport, ...]:
-        """Upload ``missions[i]`` to vehicle ``i``, concurrently, each verified."""
+        """Upload ``missions[i]`` to vehicle ``i``, concurrently, each verified; with
+        ``parameters[i]`` (mission i's ``.parm``) read back and compared
+        (:attr:`UploadReport.parameter_errors`)."""
         if len(missions) != len(self.links):
             raise ValueError(f"{len(missions)} missions for {len(self.links)} vehicles")
-        by_link = dict(zip(self.links, missions, strict=True))
-        return on_every_vehicle(
-            self.links,
-            "upload",
-            lambda link: upload_and_verify(link, by_link[link], self.policy, verification),
-        )
+        expected = list(parameters) if parameters is not None else [{}] * len(missions)
+        if len(expected) != len(self.links):
+            raise ValueError(f"{len(expected)} parameter sets for {len(self.links)} vehicles")
+        index = {link: i for i, link in enumerate(self.links)}
+
+        def upload(link: VehicleLink) -> UploadReport:
+            i = index[link]
+            return upload_and_verify(link, missions[i], self.policy, verification, expected[i])
+
+        return on_every_vehicle(self.links, "upload", upload)
+
+    def check_parameters(
+        self, expected: Sequence[Mapping[str, float]]
+    ) -> tuple[tuple[ParameterCheck, ...], ...]:
+        """Read ``expected[i]`` (a mission's ``.parm``) from vehicle ``i`` and compare: every
+        check, per vehicle; :attr:`ParameterCheck.ok` is False where a value differs or the
+        vehicle does not know the parameter (logged as a warning)."""
+        if len(expected) != len(self.links):
+            raise ValueError(f"{len(expected)} parameter sets for {len(self.links)} vehicles")
+        by_link = dict(zip(self.links, expected, strict=True))
+        checks = on_every_vehicle(
+            self.links, "parameters",
+            lambda link: check_parameters(link, by_link[link], self.policy),
+        )  # fmt: skip
+        for check in (c for row in checks for c in row if not c.ok):
+            logger.warning("%s", check.error())
+        return checks
 
     def request_position_streams(self, rate_hz: float) -> None:
         """GLOBAL_POSITION_INT at ``rate_hz`` [Hz] from every vehicle (confirmed arriving)."""
@@ -151,7 +176,9 @@ def upload_to_vehicles(
     missions: Sequence[DroneMission],
     policy: RetryPolicy | None = None,
     verification: Verification = Verification.ARDUPILOT,
+    parameters: Sequence[Mapping[str, float]] | None = None,
 ) -> tuple[UploadReport, ...]:
-    """Connect, upload ``missions[i]`` to ``addresses[i]`` with verification, disconnect."""
+    """Connect, upload ``missions[i]`` to ``addresses[i]`` with verification and the
+    parameter check (:meth:`Fleet.upload`), disconnect."""
     with Fleet.connect(addresses, policy) as fleet:
-        return fleet.upload(missions, verification)
+        return fleet.upload(missions, verification, parameters)

@@ -21,11 +21,13 @@ Everything the vehicles send is written to ``drone{k}.tlog`` (time base: the sim
 :class:`~missions.mavlink.tlog.StretchedClock`), and what the ground did and when to
 ``flight.json``. :mod:`missions.flight_report` reads both.
 
-Pace: a simulation step is stepped by the simulator's own clock, so what it computes is
-right at any pace; but a ground station's command reaches each simulator at a wall-clock
-instant, so the three must run at the pace the flight assumes. The achieved rate of each
-simulator (SYSTEM_TIME against the wall clock) is measured over the flight and a flight
-slower than ``min_rate`` of the speed-up is refused (:class:`SitlError`).
+Pace: each simulator steps by its own clock, so what it computes is right at any pace, and
+the flight report aligns the drones at their releases on their own clocks: a loaded
+machine that slows the simulators changes nothing but the wall time. A ground station's
+command still reaches each simulator at a wall-clock instant, so a simulator that nearly
+stalls would take it late in simulated time: the achieved rate of each (SYSTEM_TIME against
+the wall clock) is measured and a flight slower than ``min_rate`` of the speed-up is refused
+(:class:`SitlError`). Wall-clock waits are sized for that slowest pace.
 """
 
 from __future__ import annotations
@@ -140,6 +142,7 @@ class SitlFlight:
     vehicles: tuple[VehicleFlight, ...]
     parameters: dict[str, dict[str, float]]  #: what was set, per vehicle
     release_delays: tuple[float, ...]
+    parameter_differences: tuple[str, ...]  #: read back unlike the plan's .parm
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -354,14 +357,23 @@ def _fly(
             values.update(options.parameter_overrides[k])
         parameters[link.name] = values
     on_every_vehicle(links, "parameters", lambda v: set_parameters(v, parameters[v.name], policy))
+    # what a ground station does before a flight: read the plan's parameters back
+    differences = tuple(
+        str(check.error())
+        for row in fleet.check_parameters(plan.parameters)
+        for check in row
+        if not check.ok
+    )
     fleet.upload(plan.missions)
     progress = _Progress(links)
     progress.settle_speed = options.settle_speed
     rates = _RateMeter(links)
     fleet.arm()
     fleet.start()
+    # waits in wall time for the slowest pace accepted
+    pace = sim * settings.min_rate
     # takeoff and settling take tens of simulated seconds: give them minutes
-    airborne_s = 300.0 / sim + 30.0
+    airborne_s = 300.0 / pace + 30.0
     progress.wait(
         lambda: all(
             progress.current[n] == plan.hold_seq and progress.steady_for(n) >= options.settle_s
@@ -371,7 +383,7 @@ def _fly(
         "every drone steady at its start hold",
     )
     report = _release(links, plan.release_seq, options.release_delays, sim, policy)
-    flight_s = (2.0 * plan.duration_s + max(options.release_delays) + 30.0) / sim
+    flight_s = (2.0 * plan.duration_s + max(options.release_delays) + 30.0) / pace
     progress.wait(
         lambda: all(progress.current[link.name] == plan.end_seq[k] for k, link in enumerate(links)),
         flight_s,
@@ -380,7 +392,7 @@ def _fly(
     end_boot = dict(progress.boot_s)
     progress.wait(
         lambda: all(progress.boot_s[n] >= end_boot[n] + options.end_margin_s for n in end_boot),
-        options.end_margin_s / sim + 10.0,
+        options.end_margin_s / pace + 10.0,
         "the end margin",
     )
     achieved = rates.rates()
@@ -411,4 +423,5 @@ def _fly(
         vehicles=vehicles,
         parameters=parameters,
         release_delays=options.release_delays,
+        parameter_differences=differences,
     )

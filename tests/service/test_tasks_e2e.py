@@ -51,8 +51,13 @@ def test_rescue_is_planned_and_every_artifact_is_served(done, tmp_path):
         "mission.mcap",
         "profile.png",
         "summary.json",
+        "task.json",
         "bundle.zip",
-    } | {f"drone{k}.{ext}" for k in (1, 2, 3) for ext in ("waypoints", "plan", "mission.json")}
+    } | {
+        f"drone{k}.{ext}"
+        for k in (1, 2, 3)
+        for ext in ("waypoints", "plan", "mission.json", "parm")
+    }
     assert names == expected
     for k in (1, 2, 3):
         text = client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.waypoints").text
@@ -164,8 +169,11 @@ def test_goal_as_a_platform_pose_gets_the_alphas_of_least_cost(tmp_path):
         assert accepted.status_code == 202, accepted.text
         task = wait_finished(client, accepted.json()["id"])
         assert task["status"] == "done", task["error"]
-        path = client.get(f"/v1/tasks/{task['id']}/artifacts/path.json").json()
-        goal = path["configurations"][-1]
+        # the goal lies within the RTK clearance of the roofs: the plan ends above it and
+        # the mission sets the bridge down on it
+        set_down = task["result"]["mission"]["set_down"]
+        assert set_down["surfaces"] == ["east building", "west building"]
+        goal = set_down["low"]
     # Independent check: no alpha triple of a fine grid around the chosen one is both valid
     # and cheaper (the chosen alphas are the least-cost valid ones up to the grid spacing).
     alphas = np.array(goal[6:])

@@ -24,6 +24,7 @@ from service.errors import (
     UploadNotAllowedError,
 )
 from service.schemas import (
+    ParameterDifference,
     TaskAccepted,
     TaskPage,
     TaskPublic,
@@ -175,15 +176,22 @@ def _allowed(address: str, patterns: tuple[str, ...]) -> bool:
     "/{task_id}/upload",
     response_model=UploadPublic,
     dependencies=[Depends(require_token)],
-    responses={502: {"model": UploadPublic}},
+    responses={
+        409: {"model": UploadPublic, "description": "uploaded; a vehicle's parameters differ"},
+        502: {"model": UploadPublic, "description": "a vehicle failed"},
+    },
 )
 async def upload_task(
     task_id: str, body: UploadCreate, state: ServiceState = Depends(get_state)
 ) -> UploadPublic | JSONResponse:
-    """Upload the three missions (drone k to ``vehicles[k-1]``), verify by read-back, record
-    the outcome per vehicle. 502 if any vehicle failed (the others keep their mission)."""
+    """Upload the three missions (drone k to ``vehicles[k-1]``), verify by read-back, read
+    the parameters of ``drone{k}.parm`` back from each vehicle, record the outcome per
+    vehicle. 502 if any vehicle failed (the others keep their mission); 409 if every mission
+    is on board but a vehicle's parameters differ from the plan's (the mission's timing
+    holds only with them: set them, e.g. by loading the ``.parm`` in the ground station)."""
     from missions.formats import mission_from_json
     from missions.mavlink import FleetError, RetryPolicy, upload_to_vehicles
+    from missions.parameter_file import read_parameter_file
 
     record = _record(state, task_id)
     refused = [v for v in body.vehicles if not _allowed(v, state.settings.upload_allow)]
@@ -201,27 +209,41 @@ async def upload_task(
         )
         for k in (1, 2, 3)
     ]
+    parameters = [read_parameter_file(_artifact_path(state, record, f"drone{k}.parm"))
+                  for k in (1, 2, 3)]  # fmt: skip
     policy = RetryPolicy(deadline_s=state.settings.upload_timeout)
     failures: dict[str, str] = {}
+    differences: dict[str, list[ParameterDifference]] = {}
     try:
-        await run_in_threadpool(upload_to_vehicles, list(body.vehicles), missions, policy)
+        reports = await run_in_threadpool(
+            upload_to_vehicles, list(body.vehicles), missions, policy, parameters=parameters
+        )
+        differences = {
+            report.vehicle: [ParameterDifference(name=e.name, expected=e.expected, found=e.found)
+                             for e in report.parameter_errors]
+            for report in reports
+        }  # fmt: skip
     except FleetError as error:
         failures = {name: str(problem) for name, problem in error.failures.items()}
     except Exception as error:
         failures = {v: f"{type(error).__name__}: {error}" for v in body.vehicles}
-    outcome = UploadPublic(
-        ok=not failures,
-        vehicles=[
-            VehicleUpload(
-                drone=k + 1,
-                vehicle=v,
-                ok=v not in failures,
-                detail=failures.get(v, "uploaded and verified"),
+    vehicles = []
+    for k, vehicle in enumerate(body.vehicles):
+        differ = differences.get(vehicle, [])
+        detail = failures.get(vehicle, "uploaded and verified")
+        if differ:
+            detail += "; parameters differ from the plan's: " + ", ".join(
+                f"{d.name} should be {d.expected:g}, the vehicle has "
+                + ("none" if d.found is None else f"{d.found:g}")
+                for d in differ
             )
-            for k, v in enumerate(body.vehicles)
-        ],
-    )
+        ok = vehicle not in failures and not differ
+        vehicles.append(VehicleUpload(drone=k + 1, vehicle=vehicle, ok=ok, detail=detail,
+                                      parameter_differences=differ))  # fmt: skip
+    outcome = UploadPublic(ok=all(v.ok for v in vehicles), vehicles=vehicles)
     state.store.add_upload(task_id, outcome.model_dump())
     if failures:
         return JSONResponse(outcome.model_dump(), status_code=502)
+    if not outcome.ok:
+        return JSONResponse(outcome.model_dump(), status_code=409)
     return outcome
