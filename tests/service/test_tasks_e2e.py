@@ -17,7 +17,8 @@ from pymavlink import mavwp
 from flycrane.scene import SCENES_DIR
 from missions.formats import mission_from_json
 from missions.mavlink import MockAutopilot, MockConfig, SimClock
-from missions.mavlink.mock_flight import Geodetic
+from missions.mavlink.mock_config import Geodetic
+from missions.parameter_file import parse_parameter_file
 from tests.missions.mavlink.conftest import free_udp_port
 from tests.service.conftest import running_service, wait_finished, wait_status
 
@@ -96,8 +97,11 @@ def test_upload_to_three_mock_autopilots_through_the_api(done):
             client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.mission.json").json()
         )
         home = stored.items[0]
+        # the user loads the plan's .parm into each vehicle before the upload checks it
+        parm = client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.parm").text
         port = free_udp_port()
-        config = MockConfig(system_id=k, home=Geodetic(home.x * 1e-7, home.y * 1e-7, home.z))
+        config = MockConfig(system_id=k, home=Geodetic(home.x * 1e-7, home.y * 1e-7, home.z),
+                            parameters=parse_parameter_file(parm))  # fmt: skip
         mocks.append(MockAutopilot(f"udpin:127.0.0.1:{port}", config, clock).start())
         addresses.append(f"udpout:127.0.0.1:{port}")
     try:
