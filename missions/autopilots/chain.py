@@ -73,19 +73,19 @@ def fly_chain(
     points: NDArray[np.float64],
     limits: Sequence[SpeedLimits],
     accel: AccelLimits,
-    initial: SpeedLimits,
+    initial: SpeedLimits | None = None,
     tracking: Tracking | None = None,
     dt: float = WPNAV_DT,
 ) -> ChainFlight:
     """Fly the spline chain through ``points`` (K, 3) with ``limits[k]`` on leg k after the
-    ``initial`` limits (WPNAV_SPEED*), the vehicle following its target as ``tracking``
-    says."""
+    ``initial`` limits (WPNAV_SPEED*; default: the first leg's, all in force when it is set
+    up), the vehicle following its target as ``tracking`` says."""
     legs = legs_through(points)
     if len(limits) != len(legs):
         raise ValueError(f"{len(limits)} speed limits for {len(legs)} legs")
     times, positions, speeds, arrival = [np.zeros(1)], [points[:1]], [np.zeros(1)], [0.0]
     vehicle = [points[:1]]
-    entry, start, previous = 0.0, 0.0, initial
+    entry, start, previous = 0.0, 0.0, limits[0] if initial is None else initial
     state = vehicle_state(points[0])
     for k, (leg, limit) in enumerate(zip(legs, limits, strict=True)):
         setup, previous = limits_at_setup(previous, limit), limit

@@ -17,7 +17,7 @@ from pymavlink import mavwp
 from flycrane.scene import SCENES_DIR
 from missions.formats import mission_from_json
 from missions.mavlink import Fleet, MockAutopilot, MockConfig, RetryPolicy, SimClock
-from missions.mavlink.mock_flight import Geodetic
+from missions.mavlink.mock_config import Geodetic
 from missions.parameter_file import parse_parameter_file
 from tests.missions.mavlink.conftest import free_udp_port
 from tests.service.conftest import running_service, wait_finished, wait_status

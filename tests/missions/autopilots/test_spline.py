@@ -133,3 +133,7 @@ def test_the_leg_clock_slows_while_a_lagging_vehicle_catches_up():
     perfect = fly_leg(leg, limits, ACCEL, 0.0, 0.0)
     lagging = fly_leg(leg, limits, ACCEL, 0.0, 0.0, Tracking(accel_lag=0.3))
     assert lagging.duration > perfect.duration + 0.05
+    # given no acceleration (as ArduPilot's spline legs), it overshoots a braking target, as
+    # SITL's copters do: Rescue drone 1 by 8.9 cm braking from 0.39 m/s (its DataFlash PSC
+    # log, last leg; tests/missions/data); this one 12 cm from 0.5 m/s with a 0.3 s lag
+    assert np.abs(lagging.vehicle[-1] - [2.0, 0, 5]).max() < 0.15
