@@ -8,7 +8,7 @@ motion ArduCopter will fly with them (design.md section 9, ``missions.autopilots
 2. **Timing**: waypoint times and per-drone limits with which the modelled flights reach
    every waypoint together (:func:`missions.autopilots.speed_solver.solve_fleet`), no
    faster than the drone speed and platform angular rate limits allow.
-3. **Check**: the load reconstructed from the three *modelled* drone positions every
+3. **Check**: the load reconstructed from the three *modelled* targets every
    ``check_resolution`` seconds, against the plan at the formation's progress (the dense
    sample nearest the three drones: a delay all three share is harmless, a difference
    between them is not), must pass the same checks as the straight legs did; where it fails
@@ -17,6 +17,11 @@ motion ArduCopter will fly with them (design.md section 9, ``missions.autopilots
 4. **Early legs** (a drone that should fly a level leg slower than ArduCopter's 20 cm/s
    floor, mostly the time law's slow ramps): a waypoint next to one is dropped where the
    check still passes.
+5. **Tracking**: the same measure on the modelled *vehicles*, which lag their targets
+   (ArduCopter gives spline legs no acceleration feed-forward), is reported, not enforced
+   (``max_tracking_deviation``): splitting legs does not shorten a lag, and the plan's
+   clearance (the position-error model) is what covers it. Puzzle seed 2: 9.3 cm of
+   platform displacement at most, Rescue seed 0: 5.7 cm (default options).
 """
 
 from __future__ import annotations
@@ -74,8 +79,11 @@ class FlightPlan:
     vehicles: DroneMotion  #: where the modelled vehicles following those targets will be
     settings: ArduCopterSettings
     early: tuple[tuple[int, int], ...]  #: (drone, leg) flown faster than planned (1-based)
-    max_platform_deviation: float  #: over the modelled flight [m]
+    max_platform_deviation: float  #: over the modelled flight (the targets) [m]
     max_cable_length_error: float  #: [m]
+    #: the same for the modelled vehicles, which lag their targets: what the check on the
+    #: targets does not see (module docstring) [m]
+    max_tracking_deviation: float
     track_time: NDArray[np.float64]  #: (K,) the dense plan's time at its waypoints
     set_down: SetDown | None = None  #: W = K + 1 with one, else W = K
 
@@ -252,6 +260,10 @@ def plan_flight(
     if not reason and straight.ok:
         trial = _merge_early_legs(trial, attempt, options)
     fleet, waypoints = trial.fleet, trial.waypoints
+    vehicles = DroneMotion.from_chains(fleet.flights, fleet.times, vehicles=True)
+    lagging = vehicles.at(trial.times)
+    progress = formation_progress(track.time, track.drones, lagging)
+    tracking = check_flight(system, track, lagging, progress, validity)
     return FlightPlan(
         ok=straight.ok and not reason,
         reason=reason,
@@ -261,11 +273,12 @@ def plan_flight(
         drones=waypoints.drones,
         limits=fleet.limits,
         motion=trial.motion,
-        vehicles=DroneMotion.from_chains(fleet.flights, fleet.times, vehicles=True),
+        vehicles=vehicles,
         settings=settings,
         early=fleet.early,
         max_platform_deviation=float(trial.check.platform_deviation.max()),
         max_cable_length_error=float(trial.check.cable_length_error.max()),
+        max_tracking_deviation=float(tracking.platform_deviation.max()),
         track_time=track.time[waypoints.indices],
         set_down=None
         if set_down is None

@@ -12,6 +12,7 @@ Topics (log time = mission start + track time):
 - ``/annotations/tensions``, ``/annotations/thrusts``, ``/annotations/cost`` at every
   waypoint (JSON);
 - ``/mission/drone{k}`` the mission items per drone, once (JSON);
+- any further JSON records the caller adds (a flight's figures, ``missions.flight_report``);
 - metadata records ``system``, ``scene``, ``planner``, ``mission`` (JSON texts).
 """
 
@@ -60,11 +61,13 @@ class LogInputs:
     system: CableSystem
     scene: SceneSpec
     track: Track
-    annotations: Annotations
+    annotations: Annotations | None  #: the waypoints' statics (None: a flown track)
     missions: Sequence[DroneMission]
     options: MissionOptions
     start_ns: int  #: log time of mission time 0 [ns since the Unix epoch]
     metadata: Mapping[str, Mapping[str, Any]]  #: name -> plain data (system, planner, ...)
+    #: further JSON messages: (mission time [s], topic, body)
+    records: Sequence[tuple[float, str, Mapping[str, Any]]] = ()
 
 
 def _set_pose(pose, position, rotation) -> None:
@@ -185,7 +188,8 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
             )
             fix.timestamp.FromNanoseconds(stamp)
             messages.append((stamp, f"/drone{j + 1}/fix", fix.SerializeToString()))
-    for record in inputs.annotations.records():
+    annotations = inputs.annotations.records() if inputs.annotations is not None else []
+    for record in annotations:
         stamp = stamp_of(record["time"])
         tensions = {
             "time": record["time"],
@@ -204,6 +208,8 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
             ("/annotations/cost", cost),
         ):
             messages.append((stamp, topic, json.dumps(body).encode()))
+    for when, topic, extra in inputs.records:
+        messages.append((stamp_of(when), topic, json.dumps(extra).encode()))
     for mission in inputs.missions:
         messages.append(
             (start, f"/mission/drone{mission.drone}", json.dumps(mission_json(mission)).encode())
@@ -235,7 +241,7 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
             channels[topic] = writer.register_channel(topic, "json", json_schema)
         for sequence, (stamp, topic, data) in enumerate(messages):
             writer.add_message(channels[topic], stamp, data, stamp, sequence)
-        for name, data in inputs.metadata.items():
-            writer.add_metadata(name, {"json": json.dumps(data, default=str)})
+        for name, content in inputs.metadata.items():
+            writer.add_metadata(name, {"json": json.dumps(content, default=str)})
         writer.finish()
     return path

@@ -167,6 +167,7 @@ def run_task(
         "duration": flight.duration,
         "max_platform_deviation": flight.max_platform_deviation,
         "max_cable_length_error": flight.max_cable_length_error,
+        "max_tracking_deviation": flight.max_tracking_deviation,
         "timing_tolerance": tolerance.as_dict(),
         "early_legs": [list(e) for e in flight.early],
         "items_per_drone": [len(m.items) for m in missions],

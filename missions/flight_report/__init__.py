@@ -3,12 +3,14 @@
 - :mod:`.log` reads one drone's tlog (estimate, truth where a simulator gives it, events);
 - :mod:`.alignment` puts the three drones on one mission time;
 - :mod:`.plan` reads what the drones were told (a task's directory);
-- :mod:`.report` computes every figure and the verdict, :mod:`.plot` draws them.
+- :mod:`.report` computes every figure and the verdict, :mod:`.plot` draws them and
+  :mod:`.flight_log` logs them for Foxglove.
 
 :func:`report_sitl_flight` reports a flight our SITL harness recorded (its directory has
 ``flight.json``), :func:`report_tlogs` any three tlogs of a task's missions (a real flight
-recorded by a ground station); :func:`write_report` saves ``report.json``, ``report.png``
-and ``flown.json`` (the viewer draws the flown path from it, ``docs/viewer.md``).
+recorded by a ground station); :func:`write_report` saves ``report.json``, ``report.png``,
+``flown.json`` (the viewer draws the flown path from it, ``docs/viewer.md``) and
+``flight.mcap`` (the same figures over time, for Foxglove).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from missions.flight_report.alignment import releases_from_logs, releases_from_sends
+from missions.flight_report.flight_log import write_flight_mcap
 from missions.flight_report.log import read_vehicle_log
 from missions.flight_report.plan import PlannedFlight
 from missions.flight_report.plot import plot_flight_report
@@ -27,6 +30,7 @@ from missions.formats import dumps
 
 #: What write_report saves, and the viewer's flown-path file.
 REPORT_FILE, PLOT_FILE, FLOWN_FILE = "report.json", "report.png", "flown.json"
+MCAP_FILE = "flight.mcap"
 
 
 def report_sitl_flight(flight_dir: Path) -> tuple[FlightReport, PlannedFlight]:
@@ -53,9 +57,12 @@ def report_tlogs(task_dir: Path, tlogs: Sequence[Path]) -> tuple[FlightReport, P
     return flight_report(plan, vehicles, releases_from_logs(vehicles, release_seq)), plan
 
 
-def write_report(report: FlightReport, out_dir: Path, title: str = "") -> dict[str, Path]:
-    """``report.json``, ``report.png`` and ``flown.json`` (the safety source's drones on
-    mission time) into ``out_dir``."""
+def write_report(
+    report: FlightReport, plan: PlannedFlight, out_dir: Path, title: str = ""
+) -> dict[str, Path]:
+    """``report.json``, ``report.png``, ``flown.json`` (the safety source's drones on
+    mission time, for the viewer) and ``flight.mcap`` (:mod:`.flight_log`) into
+    ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / REPORT_FILE).write_text(dumps(report.as_dict()), encoding="utf-8")
     plot_flight_report(report, out_dir / PLOT_FILE, title)
@@ -66,4 +73,5 @@ def write_report(report: FlightReport, out_dir: Path, title: str = "") -> dict[s
         "drones_enu": report.series[source]["drones_enu"],
     }
     (out_dir / FLOWN_FILE).write_text(dumps(flown), encoding="utf-8")
-    return {name: out_dir / name for name in (REPORT_FILE, PLOT_FILE, FLOWN_FILE)}
+    write_flight_mcap(report, plan, out_dir / MCAP_FILE)
+    return {name: out_dir / name for name in (REPORT_FILE, PLOT_FILE, FLOWN_FILE, MCAP_FILE)}

@@ -44,6 +44,7 @@ class Releases:
 
     vehicle_time: NDArray[np.float64]  #: (3,) [s]
     common_time: NDArray[np.float64]  #: (3,) [s], relative to the first release (min 0)
+    log_time: float = 0.0  #: mission time 0 on the log's clock [s since the Unix epoch]
 
     @property
     def spread(self) -> float:
@@ -71,7 +72,8 @@ def _released(vehicle: VehicleLog, release_seq: int) -> tuple[float, float]:
 def releases_from_logs(vehicles: Sequence[VehicleLog], release_seq: int) -> Releases:
     """Releases from the logs alone (module docstring)."""
     events = np.array([_released(v, release_seq) for v in vehicles])
-    return Releases(events[:, 0], events[:, 1] - events[:, 1].min())
+    first = float(events[:, 1].min())
+    return Releases(events[:, 0], events[:, 1] - first, first)
 
 
 def releases_from_sends(
@@ -80,4 +82,4 @@ def releases_from_sends(
     """Releases with the ground's send times on the log clock (module docstring)."""
     vehicle_time = [_released(v, release_seq)[0] for v in vehicles]
     sent = np.asarray(sent_log_time, dtype=float)
-    return Releases(np.array(vehicle_time), sent - sent.min())
+    return Releases(np.array(vehicle_time), sent - sent.min(), float(sent.min()))

@@ -11,11 +11,11 @@ from missions.flight_report import report_sitl_flight, report_tlogs, write_repor
 
 def _cmd_flight_report(args: argparse.Namespace) -> int:
     if args.tlogs:
-        report, _ = report_tlogs(Path(args.flight), [Path(t) for t in args.tlogs])
+        report, plan = report_tlogs(Path(args.flight), [Path(t) for t in args.tlogs])
     else:
-        report, _ = report_sitl_flight(Path(args.flight))
+        report, plan = report_sitl_flight(Path(args.flight))
     out = Path(args.out or args.flight)
-    files = write_report(report, out, title=args.flight)
+    files = write_report(report, plan, out, title=args.flight)
     print(report.verdict)
     for name, path in files.items():
         print(f"  {name}: {path}")

@@ -111,6 +111,7 @@ class FlightReport:
     true: SourceFigures | None
     verdict: Verdict
     parameter_differences: tuple[str, ...] = ()
+    release_log_time: float = 0.0  #: mission time 0 [s since the Unix epoch, the log's clock]
     series: dict[str, dict[str, list[Any]]] = field(default_factory=dict, repr=False)
 
     def as_dict(self) -> dict[str, Any]:
@@ -330,6 +331,7 @@ def flight_report(
         true=true,
         verdict=Verdict(not reasons, tuple(reasons), tuple(warnings)),
         parameter_differences=tuple(parameter_differences),
+        release_log_time=releases.log_time,
         series={
             "time": {"mission": t.tolist()},
             "progress": {"plan_time": [[_finite(p) for p in row] for row in progress]},

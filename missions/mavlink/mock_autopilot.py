@@ -339,7 +339,7 @@ class MockAutopilot:
 
     def _position(self) -> MessageSpec:
         lat, lon, alt = self.flight.reported_geodetic()
-        east, north, up = self.flight.velocity
+        east, north, up = self.flight.reported_velocity()
         heading = UNKNOWN_HEADING
         if math.hypot(east, north) > 0.1:
             heading = round(math.degrees(math.atan2(east, north)) % 360.0 * 100) % 36000

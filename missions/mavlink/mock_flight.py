@@ -17,7 +17,10 @@ enough to check timing and geometry of multi-drone missions.
   vehicle's navigation parameters (:func:`~.mock_params.settings_from_parameters`:
   WPNAV_SPEED, _UP and _DN are the speed limits until a DO_CHANGE_SPEED changes them,
   WPNAV_ACCEL and _ACCEL_Z the accelerations, PSC_* and WPNAV_JERK the tracking); param1
-  is a hold time [s] at the waypoint. NAV_WAYPOINT is the mock's own simpler leg, not
+  is a hold time [s] at the waypoint. The position and velocity reported are the modelled
+  vehicle's, which lags its target as a copter does (a few centimetres, more in braking);
+  after the legs it settles onto the target with the position controller's time constant
+  (1 / PSC_POSXY_P). NAV_WAYPOINT is the mock's own simpler leg, not
   ArduCopter's S-curve: the straight 3-D line to the item, with the along-track speed
   changing at most ``max_accel_mps2``, at :class:`Dynamics`' speeds until a DO_CHANGE_SPEED
   changes them; param1 is the hold time [s] at the waypoint. DO_CHANGE_SPEED sets a speed
@@ -63,7 +66,7 @@ from missions.geodesy import ardupilot_altitude
 from missions.items import MavCmd, MissionItem
 from missions.mavlink.mock_config import Dynamics, Geodetic, Imperfections
 from missions.mavlink.mock_params import ARDUCOPTER_DEFAULTS, settings_from_parameters
-from missions.mavlink.mock_spline import NextWaypoint, SplineNavigator
+from missions.mavlink.mock_spline import NextWaypoint, SplineLeg, SplineNavigator
 from missions.mavlink.mock_straight import SpeedProfile
 
 #: The commands the mock flies; anything else is refused at upload (MAV_MISSION_UNSUPPORTED).
@@ -173,6 +176,10 @@ class KinematicFlight:
         self.landed_disarm = False  #: set when NAV_LAND touched down (the autopilot disarms)
         self.finished = False
         self._speed = 0.0  # along-track speed carried from one leg into the next [m/s]
+        # where the vehicle is against its target (spline legs: the tracking model's lag;
+        # after them it settles with the position controller's time constant) [m, m/s]
+        self._lag = np.zeros(3)
+        self._lag_velocity = np.zeros(3)
         self._overrides: dict[str, float] = {}  # DO_CHANGE_SPEED limits so far [m/s]
         self._navigator = SplineNavigator(default_settings())
         self._program: Generator[None, float, None] | None = None
@@ -221,6 +228,8 @@ class KinematicFlight:
     def step(self, now: float, dt_s: float) -> list[FlightEvent]:
         """Advance by one step of ``dt_s`` ending at ``now`` [s]; the events of that step."""
         self._time = now
+        settle = np.exp(-dt_s * self._navigator.settings.position_p)
+        self._lag, self._lag_velocity = self._lag * settle, self._lag_velocity * settle
         if self._program is not None and not self.finished:
             try:
                 self._program.send(dt_s)
@@ -248,8 +257,9 @@ class KinematicFlight:
         return np.array([e, n, u], dtype=float)
 
     def reported_geodetic(self) -> tuple[float, float, float]:
-        """(lat [deg], lon [deg], alt AMSL [m]) of the position with the configured noise."""
-        enu = self.position
+        """(lat [deg], lon [deg], alt AMSL [m]) of the vehicle (its target and its lag),
+        with the configured noise."""
+        enu = self.position + self._lag
         sigma = self.imperfections.position_noise_m
         if sigma > 0:
             enu = enu + self._rng.normal(0.0, sigma, 3)
@@ -399,11 +409,22 @@ class KinematicFlight:
         )
         elapsed = carry
         while elapsed < leg.duration:
-            self.position, self.velocity = leg.at(elapsed)
+            self._follow(leg, elapsed)
             elapsed += yield
-        self.position, self.velocity = destination, leg.at(leg.duration)[1]
+        self._follow(leg, leg.duration)
+        self.position = destination
         self._speed = leg.exit_speed
         return elapsed - leg.duration
+
+    def _follow(self, leg: SplineLeg, elapsed: float) -> None:
+        """Target and vehicle ``elapsed`` [s] into a spline leg."""
+        self.position, self.velocity = leg.at(elapsed)
+        vehicle, velocity = leg.vehicle_at(elapsed)
+        self._lag, self._lag_velocity = vehicle - self.position, velocity - self.velocity
+
+    def reported_velocity(self) -> np.ndarray:
+        """The vehicle's velocity (ENU m/s): its target's and its lag's."""
+        return self.velocity + self._lag_velocity
 
     def _hold(self, duration: float, carry: float) -> Phase:
         """Stay put for ``duration`` [s]."""

@@ -82,6 +82,15 @@ class SplineLeg:
         direction = tangent / norm if norm > 0.0 else np.zeros(3)
         return self.curve.position(u), direction * speed
 
+    def vehicle_at(self, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The modelled vehicle's position and velocity ``t`` [s] after the leg's start
+        (held at the end): it lags the target as the position controller lets it."""
+        time, vehicle = self.flown.time, self.flown.vehicle
+        position = np.array([np.interp(t, time, vehicle[:, i]) for i in range(3)])
+        k = int(np.clip(np.searchsorted(time, t), 1, len(time) - 1))
+        velocity = (vehicle[k] - vehicle[k - 1]) / max(time[k] - time[k - 1], 1e-9)
+        return position, velocity
+
 
 class SplineNavigator:
     """What one vehicle carries from one spline leg into the next (module docstring)."""

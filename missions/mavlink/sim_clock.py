@@ -145,7 +145,7 @@ class SimClock:
             if self._held_since is None and paced - self._frontier > self.max_lag_steps:
                 # forget the debt (module docstring): pace from the frontier on
                 self._epoch_monotonic += (paced - self._frontier - 1) * self.step_s / self.speedup
-                paced = self._paced(wall)
+                paced = self._frontier + 1  # not recomputed: rounding could make it frontier
             if step <= paced:
                 return 0.0
             if self._held_since is not None:

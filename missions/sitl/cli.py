@@ -38,8 +38,8 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
     out = Path(args.out)
     flight = fly_on_sitl(Path(args.task_dir), out, settings, options)
     (out / "flight.json").write_text(dumps(flight.as_dict()), encoding="utf-8")
-    report, _ = report_sitl_flight(out)
-    files = write_report(report, out, title=f"SITL flight of {args.task_dir}")
+    report, plan = report_sitl_flight(out)
+    files = write_report(report, plan, out, title=f"SITL flight of {args.task_dir}")
     timing, true = report.timing, report.true or report.estimated
     print(
         f"flown {timing.flown_duration:.2f} s of {report.planned_duration:.2f} s planned; "

@@ -59,7 +59,7 @@ def hand_made_flight(displacements, limits, start=(0.0, 0.0, 5.0)):
         motion=DroneMotion.straight(straight.time, straight.drones),
         vehicles=DroneMotion.straight(straight.time, straight.drones),
         settings=ArduCopterSettings(), early=(), max_platform_deviation=0.0,
-        max_cable_length_error=0.0, track_time=straight.time,
+        max_cable_length_error=0.0, max_tracking_deviation=0.0, track_time=straight.time,
     )  # fmt: skip
 
 
