@@ -82,7 +82,13 @@ class LegSpeeds:
 
 
 def _position_item(
-    command: MavCmd, lat: float, lon: float, z: float, frame: MavFrame, **params: float
+    command: MavCmd,
+    lat: float,
+    lon: float,
+    z: float,
+    frame: MavFrame,
+    param1: float = 0.0,
+    param2: float = 0.0,
 ) -> MissionItem:
     return MissionItem(
         seq=0,
@@ -91,7 +97,8 @@ def _position_item(
         x=int(degrees_to_int(lat)),
         y=int(degrees_to_int(lon)),
         z=float(z),
-        **params,
+        param1=param1,
+        param2=param2,
     )
 
 

@@ -94,7 +94,7 @@ def _add_shape(entity, shape, position, rotation, rgba) -> None:
         primitive.bottom_scale = primitive.top_scale = 1.0
     else:  # Mesh: inline triangles only (file meshes are drawn by their bounding box)
         primitive = entity.triangles.add()
-        if isinstance(shape, Mesh) and shape.vertices is not None:
+        if isinstance(shape, Mesh) and shape.vertices is not None and shape.faces is not None:
             for face in shape.faces:
                 for index in face:
                     point = primitive.points.add()
@@ -235,7 +235,7 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
             channels[topic] = writer.register_channel(topic, "json", json_schema)
         for sequence, (stamp, topic, data) in enumerate(messages):
             writer.add_message(channels[topic], stamp, data, stamp, sequence)
-        for name, data in inputs.metadata.items():
-            writer.add_metadata(name, {"json": json.dumps(data, default=str)})
+        for name, value in inputs.metadata.items():
+            writer.add_metadata(name, {"json": json.dumps(value, default=str)})
         writer.finish()
     return path

@@ -12,6 +12,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 from typing import Any, Literal
 
@@ -82,16 +83,15 @@ def run_task(
         progress=lambda p: report("planning", p),
     )
     result = planned.result
-    base = {
-        "planner_status": result.status.value,
-        "planner_statistics": {
-            **result.statistics.as_dict(),
-            "smoothing_time": planned.smoothing_time,
-        },
-    }
+    statistics = {**result.statistics.as_dict(), "smoothing_time": planned.smoothing_time}
+    base = {"planner_status": result.status.value, "planner_statistics": statistics}
+    # Every outcome carries the planner's status and statistics.
+    outcome_of = partial(
+        TaskOutcome, planner_status=result.status.value, planner_statistics=statistics
+    )
     if not result.status.solved:
         status: Status = "cancelled" if result.status.value == "cancelled" else "failed"
-        outcome = TaskOutcome(status, result.reason or result.status.value, **base)
+        outcome = outcome_of(status, result.reason or result.status.value)
         _write(out, "summary.json", dumps(outcome.as_dict()), {})
         return outcome
     report("generating")
@@ -112,12 +112,11 @@ def run_task(
     waypoints = reduce_to_waypoints(system, track, legs.is_safe, options)
     metrics = planned.metrics.as_dict() if planned.metrics else None
     if not waypoints.ok:
-        outcome = TaskOutcome(
+        outcome = outcome_of(
             "failed",
             f"mission generation: {waypoints.reason}",
             metrics=metrics,
             artifacts=artifacts,
-            **base,
         )
         _write(out, "summary.json", dumps(outcome.as_dict()), {})
         return outcome
@@ -179,9 +178,7 @@ def run_task(
         title=f"{task.name or problem.scene.name}: tensions and thrusts",
     )
     artifacts["profile"] = "profile.png"
-    outcome = TaskOutcome(
-        "done", "", metrics=metrics, mission=mission_summary, artifacts=artifacts, **base
-    )
+    outcome = outcome_of("done", "", metrics=metrics, mission=mission_summary, artifacts=artifacts)
     _write(out, "summary.json", dumps(outcome.as_dict()), artifacts)
     logger.info("task done in %s: %d waypoints", out, len(waypoints.time))
     return outcome

@@ -69,8 +69,10 @@ class PlannerOptions(BaseModel):
 def make_planner(space: ConfigurationSpace, validity: Validity, options: PlannerOptions):
     """The planner object for ``options.algorithm`` (each has ``solve`` and ``name``)."""
     config = options.trrt_config()
-    if options.algorithm.startswith("ompl-"):
-        return OmplPlanner(space, validity, options.algorithm.removeprefix("ompl-"), config)
+    if options.algorithm == "ompl-rrt":
+        return OmplPlanner(space, validity, "rrt", config)
+    if options.algorithm == "ompl-trrt":
+        return OmplPlanner(space, validity, "trrt", config)
     return TRRT(space, validity, config, name=options.algorithm)
 
 
