@@ -33,6 +33,12 @@ from missions.waypoints import reduce_to_waypoints
 
 logger = logging.getLogger(__name__)
 
+#: Most samples the checks of one mission may take (twice its duration over
+#: ``mission.check_resolution``: the timing tolerance flies the plan for up to twice its
+#: length). Each sample holds drone positions and a reconstructed configuration in every
+#: pass, so this bounds a worker's memory whatever the task (2.8 h of mission at 0.1 s).
+MAX_CHECK_SAMPLES = 200_000
+
 Status = Literal["done", "failed", "cancelled"]
 Stage = Literal["planning", "generating"]
 
@@ -104,6 +110,16 @@ def run_task(
         artifacts,
     )
     track = track_from_path(system, problem.space, planned.path, options)
+    samples = 2.0 * float(track.time[-1]) / options.check_resolution
+    if samples > MAX_CHECK_SAMPLES:
+        reason = (
+            f"mission generation: a {track.time[-1]:.0f} s mission checked every "
+            f"{options.check_resolution:g} s needs {samples:.3g} samples, more than "
+            f"{MAX_CHECK_SAMPLES}; raise mission.check_resolution or the speeds"
+        )
+        outcome = outcome_of("failed", reason, artifacts=artifacts)
+        _write(out, "summary.json", dumps(outcome.as_dict()), {})
+        return outcome
     # The plan keeps the scene's obstacle clearance c. The straight legs may use half of it;
     # the other half is left for the flight. The timing tolerance is judged on the real
     # obstacles, as a flown load is (docs/missions.md, "Clearance").

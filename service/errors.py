@@ -11,7 +11,7 @@ from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
-from flycrane.errors import FlyCraneError, InputError
+from flycrane.errors import FlyCraneError, InputError, readable_errors
 
 
 class ServiceError(FlyCraneError):
@@ -64,45 +64,6 @@ def input_error_body(error: InputError) -> dict:
     }
 
 
-#: Error types of a union branch the input plainly did not mean (a dict given where the
-#: other branch wanted a string or a list, or the other way round).
-_WRONG_BRANCH = {
-    dict: {"string_type", "list_type", "tuple_type"},
-    list: {"model_type", "dict_type", "model_attributes_type", "string_type"},
-}
-
-
-def _readable_location(loc: tuple) -> list:
-    """Drop pydantic's union-branch and validator tags from an error location."""
-    return [
-        part
-        for part in loc
-        if isinstance(part, int)
-        or not (
-            part in ("str", "int", "float")
-            or "[" in part
-            or part.startswith("function-")
-            or part[:1].isupper()
-            or part in ("octahedral", "generic", "box", "cylinder", "sphere", "mesh")
-        )
-    ]
-
-
-def clean_validation_errors(errors: list[dict]) -> list[dict]:
-    """Schema errors with readable locations and without wrong-branch noise."""
-    cleaned, seen = [], set()
-    for error in errors:
-        kind = next((k for k in _WRONG_BRANCH if isinstance(error.get("input"), k)), None)
-        if kind is not None and error["type"] in _WRONG_BRANCH[kind]:
-            continue
-        loc = _readable_location(tuple(error["loc"]))
-        key = (tuple(loc), error["msg"])
-        if key not in seen:
-            seen.add(key)
-            cleaned.append({"loc": loc, "msg": error["msg"], "type": error["type"]})
-    return cleaned or [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in errors]
-
-
 def install_error_handlers(app: FastAPI) -> None:
     """Map domain errors to responses (registered once by ``create_app``)."""
 
@@ -114,7 +75,7 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _schema_error(_request: Request, error: RequestValidationError) -> JSONResponse:
-        body = {"detail": clean_validation_errors(jsonable_encoder(error.errors()))}
+        body = {"detail": readable_errors(jsonable_encoder(error.errors()))}
         return JSONResponse(body, status_code=422)
 
     @app.exception_handler(InputError)
