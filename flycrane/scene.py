@@ -268,7 +268,9 @@ def preset_scene(name: str) -> tuple[SceneSpec, Path]:
     """
     if name not in list_scenes():
         known = ", ".join(list_scenes())
-        raise SceneError([FieldProblem("scene", f"no scene preset {name!r}; known: {known}")])
+        raise SceneError(
+            [FieldProblem("scene", f"no scene {name!r} among the presets; known: {known}")]
+        )
     return load_scene(SCENES_DIR / f"{name}.toml")
 
 

@@ -100,7 +100,7 @@ def served_task_problems(task: TaskSpec) -> list[FieldProblem]:
         if task.scene in list_scenes():
             return []
         known = ", ".join(list_scenes())
-        return [FieldProblem("scene", f"no scene preset {task.scene!r}; known: {known}")]
+        return [FieldProblem("scene", f"no scene {task.scene!r} among the presets; known: {known}")]
     shapes = [("obstacles", i, s) for i, s in enumerate(task.scene.obstacles)]
     shapes += [("payload.shapes", i, s) for i, s in enumerate(task.scene.payload.shapes)]
     return [

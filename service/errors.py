@@ -6,12 +6,18 @@ Every refusal names the field or the object and the reason, in FastAPI's own err
 
 from __future__ import annotations
 
+from typing import Any
+
 from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from pydantic import BaseModel
+from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 
 from flycrane.errors import FlyCraneError, InputError, readable_errors
+from flycrane.planning.validity import InvalidConfigurationError
 
 
 class ServiceError(FlyCraneError):
@@ -54,6 +60,51 @@ class UnauthorizedError(ServiceError):
     status_code = 401
 
 
+class ArtifactUnreadableError(ServiceError):
+    """A task's artifact exists but cannot be used (corrupt or truncated on disk)."""
+
+    status_code = 409
+
+
+class DataDirLockedError(ServiceError):
+    """Another server process holds the data directory (two would run each other's tasks)."""
+
+    status_code = 503
+
+
+#: Retry-After for a busy or unreachable database [s].
+DATABASE_RETRY_AFTER = 5
+
+
+class ErrorBody(BaseModel):
+    """Every error but 422: ``{"detail": "what was wrong"}``."""
+
+    detail: str
+
+
+_DESCRIPTIONS = {
+    400: "Host header not among the allowed hosts (plain text)",
+    401: "a bearer token is required (FLYCRANE_API_TOKEN / FLYCRANE_READ_TOKEN)",
+    403: "not allowed (a vehicle address outside the upload allow-list)",
+    404: "no such task or artifact",
+    409: "the task is not in a state that allows this, or its files are unusable",
+    413: "request body larger than FLYCRANE_MAX_REQUEST_BYTES",
+    503: "busy: queue full, database locked or no worker pool; see Retry-After",
+}
+
+
+def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI entries for the error statuses a route can answer with."""
+    responses: dict[int | str, dict[str, Any]] = {}
+    for code in codes:
+        if code == 400:  # written by starlette's TrustedHostMiddleware
+            content = {"text/plain": {"schema": {"type": "string"}}}
+            responses[code] = {"description": _DESCRIPTIONS[code], "content": content}
+        else:
+            responses[code] = {"model": ErrorBody, "description": _DESCRIPTIONS[code]}
+    return responses
+
+
 def input_error_body(error: InputError) -> dict:
     """FastAPI's 422 body for field problems found after schema validation."""
     return {
@@ -81,3 +132,26 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(InputError)
     async def _input_error(_request: Request, error: InputError) -> JSONResponse:
         return JSONResponse(input_error_body(error), status_code=422)
+
+    @app.exception_handler(InvalidConfigurationError)
+    async def _invalid_configuration(
+        _request: Request, error: InvalidConfigurationError
+    ) -> JSONResponse:
+        detail = {"loc": ["body", error.what], "msg": str(error.reason), "type": "value_error"}
+        return JSONResponse({"detail": [detail]}, status_code=422)
+
+    @app.exception_handler(OperationalError)
+    @app.exception_handler(PoolTimeoutError)
+    async def _database_busy(_request: Request, error: Exception) -> JSONResponse:
+        # SQLite's "database is locked" after the busy timeout, a PostgreSQL server gone:
+        # the request was fine, the database could not take it now.
+        return JSONResponse(
+            {"detail": f"the database is busy or unreachable; retry later ({_first_line(error)})"},
+            status_code=503,
+            headers={"Retry-After": str(DATABASE_RETRY_AFTER)},
+        )
+
+
+def _first_line(error: Exception) -> str:
+    text = str(getattr(error, "orig", None) or error)
+    return text.splitlines()[0] if text else type(error).__name__

@@ -178,15 +178,17 @@ def test_goal_as_a_platform_pose_gets_the_alphas_of_least_cost(tmp_path):
     assert goal[:6] == pytest.approx([0.0, 0.0, 8.45, 0.0, 0.0, 0.0])
 
 
-def test_tasks_survive_a_restart(done, data_dir):
-    _, task = done
-    # A second instance on the same data directory serves the finished task and its files,
-    # and a task that was queued when the first stopped is resumed and completed.
-    with running_service(data_dir) as client:
+def test_tasks_survive_a_restart(tmp_path):
+    # A second instance on the same data directory (once the first has stopped: one server
+    # per directory) serves the finished task and its files, and a task that was queued
+    # when the first stopped is resumed and completed.
+    with running_service(tmp_path) as client:
+        accepted = client.post("/v1/tasks", json=RESCUE).json()["id"]
+        assert wait_finished(client, accepted)["status"] == "done"
         queued = client.post("/v1/tasks", json={**RESCUE, "name": "interrupted"}).json()["id"]
-    with running_service(data_dir) as client:
-        assert client.get(f"/v1/tasks/{task['id']}").json()["status"] == "done"
-        summary = client.get(f"/v1/tasks/{task['id']}/artifacts/summary.json").json()
+    with running_service(tmp_path) as client:
+        assert client.get(f"/v1/tasks/{accepted}").json()["status"] == "done"
+        summary = client.get(f"/v1/tasks/{accepted}/artifacts/summary.json").json()
         assert summary["status"] == "done"
         resumed = wait_finished(client, queued)
         assert resumed["status"] == "done", resumed["error"]
