@@ -83,7 +83,7 @@ class ErrorBody(BaseModel):
 
 
 _DESCRIPTIONS = {
-    400: "Host header not among the allowed hosts (plain text)",
+    400: "Host header not among the allowed hosts (text), or a body that is not UTF-8 (JSON)",
     401: "a bearer token is required (FLYCRANE_API_TOKEN / FLYCRANE_READ_TOKEN)",
     403: "not allowed (a vehicle address outside the upload allow-list)",
     404: "no such task or artifact",
@@ -95,13 +95,14 @@ _DESCRIPTIONS = {
 
 def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
     """OpenAPI entries for the error statuses a route can answer with."""
+    # JSON whatever the route's own media type (an HTML page's 404 is JSON too).
+    json_body = {"application/json": {"schema": ErrorBody.model_json_schema()}}
     responses: dict[int | str, dict[str, Any]] = {}
     for code in codes:
-        if code == 400:  # written by starlette's TrustedHostMiddleware
-            content = {"text/plain": {"schema": {"type": "string"}}}
-            responses[code] = {"description": _DESCRIPTIONS[code], "content": content}
-        else:
-            responses[code] = {"model": ErrorBody, "description": _DESCRIPTIONS[code]}
+        content = dict(json_body)
+        if code == 400:  # starlette's TrustedHostMiddleware answers in plain text
+            content["text/plain"] = {"schema": {"type": "string"}}
+        responses[code] = {"description": _DESCRIPTIONS[code], "content": content}
     return responses
 
 

@@ -38,6 +38,9 @@ from sqlalchemy.engine import Dialect, Engine
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
 from sqlalchemy.types import TypeDecorator
 
+#: Largest listing offset: far beyond any number of tasks, well inside SQLite's integers.
+MAX_OFFSET = 1_000_000_000
+
 
 class TaskStatus(enum.StrEnum):
     """Life cycle of a task."""

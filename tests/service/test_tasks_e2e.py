@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import json
+import socket
 import time
 import tomllib
 import zipfile
@@ -82,11 +83,12 @@ def test_listing_pages_and_filters(done):
     assert client.get("/v1/tasks", params={"status": "bogus"}).status_code == 422
 
 
-def test_upload_to_three_mock_autopilots_through_the_api(done):
-    client, task = done
+def mock_vehicles(client, task: dict, drones) -> tuple[list, list[str]]:
+    """A started mock autopilot per drone (1-based), homed where its mission's seq 0 is;
+    stop them when done."""
     clock = SimClock(speedup=5.0)
     mocks, addresses = [], []
-    for k in (1, 2, 3):
+    for k in drones:
         stored = mission_from_json(
             client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.mission.json").json()
         )
@@ -95,6 +97,12 @@ def test_upload_to_three_mock_autopilots_through_the_api(done):
         config = MockConfig(system_id=k, home=Geodetic(home.x * 1e-7, home.y * 1e-7, home.z))
         mocks.append(MockAutopilot(f"udpin:127.0.0.1:{port}", config, clock).start())
         addresses.append(f"udpout:127.0.0.1:{port}")
+    return mocks, addresses
+
+
+def test_upload_to_three_mock_autopilots_through_the_api(done):
+    client, task = done
+    mocks, addresses = mock_vehicles(client, task, (1, 2, 3))
     try:
         response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": addresses})
         assert response.status_code == 200, response.text
@@ -110,6 +118,43 @@ def test_upload_to_three_mock_autopilots_through_the_api(done):
     finally:
         for mock in mocks:
             mock.stop()
+
+
+def test_each_vehicle_reports_its_own_outcome(done):
+    """Issue 10, item 7: drone 2's address cannot even be opened (its port is taken); drones
+    1 and 3 still get their missions, and only drone 2 reports the error."""
+    client, task = done
+    mocks, addresses = mock_vehicles(client, task, (1, 3))
+    taken = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    taken.bind(("127.0.0.1", 0))
+    busy = f"udpin:127.0.0.1:{taken.getsockname()[1]}"
+    try:
+        vehicles = [addresses[0], busy, addresses[1]]
+        response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": vehicles})
+        assert response.status_code == 502, response.text
+        outcome = {v["drone"]: v for v in response.json()["vehicles"]}
+        assert outcome[1]["ok"] and outcome[3]["ok"], outcome
+        assert not outcome[2]["ok"] and "in use" in outcome[2]["detail"], outcome
+        assert outcome[2]["vehicle"] == busy
+        assert all(len(mock.mission) > 1 for mock in mocks)
+    finally:
+        taken.close()
+        for mock in mocks:
+            mock.stop()
+
+
+def test_one_vehicle_given_twice_is_refused(done):
+    client, task = done
+    mocks, addresses = mock_vehicles(client, task, (1,))
+    try:
+        same = [addresses[0], addresses[0], addresses[0].replace("udpout:", "udp:")]
+        response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": same})
+        assert response.status_code == 422, response.text
+        locations = [d["loc"] for d in response.json()["detail"]]
+        assert locations == [["body", "vehicles[1]"], ["body", "vehicles[2]"]]
+        assert len(mocks[0].mission) <= 1  # nothing was sent to it
+    finally:
+        mocks[0].stop()
 
 
 def test_upload_refusals(done):

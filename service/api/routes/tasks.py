@@ -27,13 +27,11 @@ from service.errors import (
     error_responses,
 )
 from service.schemas import TaskAccepted, TaskPage, TaskPublic, UploadCreate, UploadPublic
-from service.storage import TaskRecord, TaskStatus
+from service.storage import MAX_OFFSET, TaskRecord, TaskStatus
 from service.uploads import allowed_vehicles, upload_missions
 
 router = APIRouter(prefix="/v1/tasks", tags=["tasks"])
 
-#: Largest listing offset: far beyond any number of tasks, well inside SQLite's integers.
-MAX_OFFSET = 1_000_000_000
 #: Media types of the artifacts, by extension.
 MEDIA_TYPES = {
     ".json": "application/json",
