@@ -16,8 +16,9 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import BrokenExecutor, Executor, Future
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -142,6 +143,7 @@ class JobManager:
         self._futures: dict[str, tuple[Future, Executor]] = {}  #: task id -> its job
         self._broken: Executor | None = None
         self._stopping = False
+        self._reserved = 0  #: slots taken by tasks being stored (slot())
         self._lock = threading.RLock()
 
     @property
@@ -158,18 +160,35 @@ class JobManager:
     def task_dir(self, task_id: str) -> Path:
         return self.tasks_dir / task_id
 
-    def reserve(self) -> None:
-        """Raise :class:`ServiceBusyError` if no slot is free (before storing a task)."""
-        if not self.healthy:
-            raise ServiceBusyError(
-                "no worker pool can run tasks (see /healthz); retry later",
-                headers={"Retry-After": "30"},
-            )
-        if self.in_flight >= self.capacity:
-            raise ServiceBusyError(
-                f"{self.capacity} tasks are queued or running; retry later",
-                headers={"Retry-After": "10"},
-            )
+    @contextmanager
+    def slot(self) -> Iterator[None]:
+        """Hold one of the ``capacity`` slots while a new task is stored and submitted.
+
+        Requests run in parallel threads: the slot is counted from here on, so that two of
+        them cannot both take the last one.
+
+        Raises
+        ------
+        ServiceBusyError
+            If no slot is free, or no pool can run tasks.
+        """
+        with self._lock:
+            if not self.healthy:
+                raise ServiceBusyError(
+                    "no worker pool can run tasks (see /healthz); retry later",
+                    headers={"Retry-After": "30"},
+                )
+            if len(self._futures) + self._reserved >= self.capacity:
+                raise ServiceBusyError(
+                    f"{self.capacity} tasks are queued or running; retry later",
+                    headers={"Retry-After": "10"},
+                )
+            self._reserved += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._reserved -= 1
 
     def submit(self, record: TaskRecord) -> None:
         """Queue a stored task (its row already says queued).

@@ -394,3 +394,39 @@ def test_health_tells_when_no_worker_pool_can_run_tasks(tmp_path):
             assert client.post("/v1/tasks", json={"name": "later"}).status_code == 503
     finally:
         pool.shutdown(wait=False, cancel_futures=True)
+
+
+def test_concurrent_submissions_never_exceed_the_queue(tmp_path, monkeypatch):
+    """Handlers run in parallel threads: of 8 simultaneous valid POSTs with room for 2,
+    exactly 2 are accepted and 6 refused with 503 (the jobs are held, so none finishes)."""
+    import missions.pipeline
+
+    release = threading.Event()
+    monkeypatch.setattr(missions.pipeline, "run_task", lambda *a, **k: release.wait(60))
+    settings = Settings(data_dir=tmp_path, allowed_hosts=(TEST_HOST,), max_queued_tasks=2)
+    with ThreadPoolExecutor(2) as pool, TestClient(create_app(settings, pool)) as client:
+        with ThreadPoolExecutor(8) as senders:
+            answers = list(senders.map(lambda n: client.post("/v1/tasks", json={}), range(8)))
+        release.set()
+        codes = sorted(a.status_code for a in answers)
+        assert codes == [202, 202] + [503] * 6, codes
+        assert all(a.headers["retry-after"] == "10" for a in answers if a.status_code == 503)
+
+
+def test_serve_refuses_an_open_address_without_a_token(tmp_path, capsys):
+    """The secure default: loopback only, unless a token is set or the operator says so."""
+    import argparse
+
+    from service.cli import _cmd_serve
+
+    args = argparse.Namespace(
+        host="0.0.0.0",
+        port=0,
+        data_dir=str(tmp_path),
+        workers=1,
+        allow_unauthenticated=False,
+        proxy_headers=False,
+        forwarded_allow_ips="127.0.0.1",
+    )
+    assert _cmd_serve(args) == 2
+    assert "without FLYCRANE_API_TOKEN" in capsys.readouterr().err

@@ -82,12 +82,12 @@ def create_task(
         state.metrics.submissions.labels("invalid").inc()
         raise
     try:
-        state.jobs.reserve()
+        with state.jobs.slot():
+            record = state.store.create(task.model_dump(mode="json"))
+            state.jobs.submit(record)
     except Exception:
         state.metrics.submissions.labels("refused").inc()
         raise
-    record = state.store.create(task.model_dump(mode="json"))
-    state.jobs.submit(record)
     state.metrics.submissions.labels("accepted").inc()
     return TaskAccepted(id=record.id, url=f"{base}v1/tasks/{record.id}", status=record.status)
 
