@@ -30,8 +30,6 @@ from flycrane.quantities import (
 )
 from flycrane.system import SystemSpec, problems_from_validation_error
 
-__all__ = ["Configuration", "SceneSpec", "load_scene", "preset_scene"]
-
 StrictIndex = Annotated[int, Field(ge=0, strict=True)]
 #: Every scene schema: numbers finite (flycrane.quantities), unknown fields refused.
 _CONFIG = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
@@ -258,20 +256,6 @@ def scene_from_dict(data: dict, source: str | None = None) -> SceneSpec:
 def list_scenes() -> list[str]:
     """Names of the scenes shipped with the package."""
     return sorted(p.stem for p in SCENES_DIR.glob("*.toml"))
-
-
-def preset_scene(name: str) -> tuple[SceneSpec, Path]:
-    """A scene shipped with the package, by name only: what a task sent over HTTP may name.
-
-    Nothing but the names of :func:`list_scenes` reaches the file system, so a name cannot
-    read a path, a device or a FIFO, and the message is the same whatever exists there.
-    """
-    if name not in list_scenes():
-        known = ", ".join(list_scenes())
-        raise SceneError(
-            [FieldProblem("scene", f"no scene {name!r} among the presets; known: {known}")]
-        )
-    return load_scene(SCENES_DIR / f"{name}.toml")
 
 
 def scene_path(name_or_path: str | Path) -> Path:

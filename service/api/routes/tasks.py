@@ -32,6 +32,7 @@ from service.uploads import allowed_vehicles, upload_missions
 
 router = APIRouter(prefix="/v1/tasks", tags=["tasks"])
 
+_FILE = {"type": "string", "format": "binary"}
 #: Media types of the artifacts, by extension.
 MEDIA_TYPES = {
     ".json": "application/json",
@@ -40,8 +41,9 @@ MEDIA_TYPES = {
     ".mcap": "application/octet-stream",
     ".png": "image/png",
 }
+#: JSON artifacts are objects; the others are files (text or bytes).
 _ARTIFACT_CONTENT = {
-    media: {"schema": {"type": "string", "format": "binary"}}
+    media: {"schema": {"type": "object"} if media == "application/json" else _FILE}
     for media in sorted(set(MEDIA_TYPES.values()))
 }
 
