@@ -32,8 +32,9 @@ browser:
 	  || echo "make: apt-get could not install chromium: browser tests will skip"; \
 	fi
 
-# The whole default test suite (CI runs exactly this through .ci/run).
-test: $(BIN)/.installed browser
+# The whole default test suite (CI runs exactly this through .ci/run): the static checks
+# first (lint), then pytest.
+test: lint browser
 	$(BIN)/python -m pytest
 
 # Long soak and statistical cases, kept out of the default run.
@@ -43,10 +44,11 @@ test-slow: $(BIN)/.installed
 bench: $(BIN)/.installed
 	$(BIN)/python benchmarks/cost_throughput.py
 
+# ruff and mypy are pinned test dependencies (pyproject.toml).
 lint: $(BIN)/.installed
-	$(BIN)/python -m pip install --quiet ruff mypy
-	$(BIN)/ruff check flycrane missions service tests benchmarks
-	$(BIN)/mypy flycrane
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy flycrane missions service
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis build *.egg-info

@@ -78,7 +78,7 @@ def _figure():
 
 def _save(plt, figure, out: str | Path, title: str) -> Path:
     if title:
-        figure.suptitle(title)
+        figure.suptitle(title, parse_math=False)  # a task name is text, not mathtext
     figure.tight_layout()
     out = Path(out)
     figure.savefig(out, dpi=120)

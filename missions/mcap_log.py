@@ -97,7 +97,7 @@ def _add_shape(entity, shape, position, rotation, rgba) -> None:
         primitive.bottom_scale = primitive.top_scale = 1.0
     else:  # Mesh: inline triangles only (file meshes are drawn by their bounding box)
         primitive = entity.triangles.add()
-        if isinstance(shape, Mesh) and shape.vertices is not None:
+        if isinstance(shape, Mesh) and shape.vertices is not None and shape.faces is not None:
             for face in shape.faces:
                 for index in face:
                     point = primitive.points.add()

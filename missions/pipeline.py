@@ -12,6 +12,7 @@ import logging
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 from typing import Any, Literal
 
@@ -34,6 +35,12 @@ from missions.timing_tolerance import timing_tolerance
 from missions.tracks import track_from_path
 
 logger = logging.getLogger(__name__)
+
+#: Most samples the checks of one mission may take (twice its duration over
+#: ``mission.check_resolution``: the timing tolerance flies the plan for up to twice its
+#: length). Each sample holds drone positions and a reconstructed configuration in every
+#: pass, so this bounds a worker's memory whatever the task (2.8 h of mission at 0.1 s).
+MAX_CHECK_SAMPLES = 200_000
 
 Status = Literal["done", "failed", "cancelled"]
 Stage = Literal["planning", "generating"]
@@ -112,16 +119,15 @@ def run_task(
         progress=lambda p: report("planning", p),
     )
     result = planned.result
-    base = {
-        "planner_status": result.status.value,
-        "planner_statistics": {
-            **result.statistics.as_dict(),
-            "smoothing_time": planned.smoothing_time,
-        },
-    }
+    statistics = {**result.statistics.as_dict(), "smoothing_time": planned.smoothing_time}
+    base = {"planner_status": result.status.value, "planner_statistics": statistics}
+    # Every outcome carries the planner's status and statistics.
+    outcome_of = partial(
+        TaskOutcome, planner_status=result.status.value, planner_statistics=statistics
+    )
     if not result.status.solved:
         status: Status = "cancelled" if result.status.value == "cancelled" else "failed"
-        outcome = TaskOutcome(status, result.reason or result.status.value, **base)
+        outcome = outcome_of(status, result.reason or result.status.value)
         _write(out, "summary.json", dumps(outcome.as_dict()), {})
         return outcome
     report("generating")
@@ -135,6 +141,16 @@ def run_task(
         artifacts,
     )
     dense = track_from_path(system, problem.space, planned.path, options)
+    samples = 2.0 * float(dense.time[-1]) / options.check_resolution
+    if samples > MAX_CHECK_SAMPLES:
+        reason = (
+            f"mission generation: a {dense.time[-1]:.0f} s mission checked every "
+            f"{options.check_resolution:g} s needs {samples:.3g} samples, more than "
+            f"{MAX_CHECK_SAMPLES}; raise mission.check_resolution or the speeds"
+        )
+        outcome = outcome_of("failed", reason, artifacts=artifacts)
+        _write(out, "summary.json", dumps(outcome.as_dict()), {})
+        return outcome
     # The plan keeps the scene's obstacle clearance c. The legs may use half of it; the
     # other half is left for the flight. The timing tolerance is judged on the real
     # obstacles, as a flown load is (docs/missions.md, "Clearance").
@@ -147,12 +163,11 @@ def run_task(
     flight = plan_flight(system, dense, legs.is_safe, options, set_down=set_down, landing=landing)
     metrics = planned.metrics.as_dict() if planned.metrics else None
     if not flight.ok:
-        outcome = TaskOutcome(
+        outcome = outcome_of(
             "failed",
             f"mission generation: {flight.reason}",
             metrics=metrics,
             artifacts=artifacts,
-            **base,
         )
         _write(out, "summary.json", dumps(outcome.as_dict()), {})
         return outcome
@@ -233,9 +248,7 @@ def run_task(
         title=f"{task.name or problem.scene.name}: tensions and thrusts",
     )
     artifacts["profile"] = "profile.png"
-    outcome = TaskOutcome(
-        "done", "", metrics=metrics, mission=mission_summary, artifacts=artifacts, **base
-    )
+    outcome = outcome_of("done", "", metrics=metrics, mission=mission_summary, artifacts=artifacts)
     _write(out, "summary.json", dumps(outcome.as_dict()), artifacts)
     logger.info("task done in %s: %d waypoints", out, len(flight.time))
     return outcome

@@ -10,47 +10,56 @@ from __future__ import annotations
 
 import json
 import tomllib
+import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from flycrane.errors import FieldProblem, InputError
 from flycrane.planning.planners import PlannerOptions
 from flycrane.planning.poses import configuration_from_pose
 from flycrane.planning.problem import PlanningProblem
-from flycrane.scene import Configuration, SceneSpec, load_scene
+from flycrane.quantities import Configuration, Orientation, Point
+from flycrane.scene import Mesh, SceneSpec, list_scenes, load_scene
 from flycrane.system import SystemSpec, problems_from_validation_error, system_preset
 from missions.options import MissionOptions
 from missions.position_error import position_error_model
 from missions.vertical_legs import VerticalLeg, clear_end
 
-Vec3 = tuple[float, float, float]
-
 
 class PlatformPose(BaseModel):
     """A start or goal given as the platform's pose; the alphas of least cost are chosen."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
-    position: Vec3 = Field(description="P [m], world frame")
-    orientation: Vec3 = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
+    position: Point = Field(description="P [m], world frame")
+    orientation: Orientation = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
 
 
 class TaskSpec(BaseModel):
     """Everything needed to plan and export a FlyCrane manipulation."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
-    name: str = Field("", max_length=200)
+    name: str = Field("", max_length=200, description="text without control characters")
     system: str | SystemSpec = Field("benchmark", description="preset name or description")
     scene: str | SceneSpec = Field("rescue", description="preset name or inline scene")
     start: Configuration | PlatformPose | None = Field(None, description="None: the scene's")
     goal: Configuration | PlatformPose | None = Field(None, description="None: the scene's")
     planner: PlannerOptions = Field(default_factory=PlannerOptions)
     mission: MissionOptions = Field(default_factory=MissionOptions)
+
+    @field_validator("name")
+    @classmethod
+    def _printable(cls, value: str) -> str:
+        """A name titles plots and logs: text, not control characters."""
+        bad = next((c for c in value if unicodedata.category(c) == "Cc"), None)
+        if bad is not None:
+            raise ValueError(f"must not contain control characters (found U+{ord(bad):04X})")
+        return value
 
 
 @dataclass(frozen=True)
@@ -86,6 +95,37 @@ def load_task(path: str | Path) -> tuple[TaskSpec, Path]:
     except (OSError, ValueError) as error:
         raise InputError([FieldProblem("file", str(error))], str(path)) from None
     return task_from_dict(data, str(path)), path.parent
+
+
+def served_task_problems(task: TaskSpec) -> list[FieldProblem]:
+    """Why a task may not be run as received over a network (empty: it may).
+
+    Such a task names files on nobody's behalf: its scene is a preset name or inline, and its
+    inline meshes carry their vertices (a mesh file or a scene path would be read from the
+    server's disk, where a name can be a device, a FIFO or someone else's file).
+    """
+    if isinstance(task.scene, str):
+        if task.scene in list_scenes():
+            return []
+        known = ", ".join(list_scenes())
+        return [FieldProblem("scene", f"no scene {task.scene!r} among the presets; known: {known}")]
+    shapes = [("obstacles", i, s) for i, s in enumerate(task.scene.obstacles)]
+    shapes += [("payload.shapes", i, s) for i, s in enumerate(task.scene.payload.shapes)]
+    return [
+        FieldProblem(
+            f"scene.{where}[{index}].file",
+            "mesh files cannot be referenced here; give vertices and faces",
+        )
+        for where, index, shape in shapes
+        if isinstance(shape, Mesh) and shape.file is not None
+    ]
+
+
+def require_served_task(task: TaskSpec) -> None:
+    """Raise :class:`InputError` with :func:`served_task_problems` if there are any."""
+    problems = served_task_problems(task)
+    if problems:
+        raise InputError(problems)
 
 
 def task_specs(

@@ -112,18 +112,21 @@ def timing_tolerance(
     offsets = []
     for late in [c for n in (1, 2) for c in combinations(range(3), n)]:
         mask = np.isin(np.arange(3), late)
-        found = _largest_safe(
-            lambda d, mask=mask: safe(lambda t: t[:, None] - d * mask), max_offset
-        )
+
+        def late_by(d: float, mask: NDArray[np.bool_] = mask) -> bool:
+            return safe(lambda t: t[:, None] - d * mask)
+
+        found = _largest_safe(late_by, max_offset)
         offsets.append((found, "drones " + " and ".join(str(j + 1) for j in late) + " late"))
     mismatches = []
     for j in range(3):
         for sign, word in ((1.0, "faster"), (-1.0, "slower")):
             mask = np.arange(3) == j
-            found = _largest_safe(
-                lambda e, mask=mask, sign=sign: safe(lambda t: t[:, None] * (1 + sign * e * mask)),
-                max_mismatch,
-            )
+
+            def off_by(e: float, mask: NDArray[np.bool_] = mask, sign: float = sign) -> bool:
+                return safe(lambda t: t[:, None] * (1 + sign * e * mask))
+
+            found = _largest_safe(off_by, max_mismatch)
             mismatches.append((found, f"drone {j + 1} {word}"))
     offset, offset_case = min(offsets)
     mismatch, mismatch_case = min(mismatches)

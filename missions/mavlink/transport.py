@@ -44,8 +44,13 @@ GCS_COMPONENT_ID = 190
 #: Who we are on the link by default: system 255, the usual ground station id.
 GROUND_STATION = Endpoint(255, GCS_COMPONENT_ID)
 
-_NETWORK = re.compile(r"^(udpin|udpout|udp|tcpin|tcp):(?://)?(?P<host>[^:/]+):(?P<port>\d+)$")
-_SERIAL = re.compile(r"^(?:serial:(?://)?)?(?P<device>/dev/[^,:]+|COM\d+)(?:[,:](?P<baud>\d+))?$")
+# ASCII digits only (re.ASCII): int() would read other scripts' digits as a port or a baud.
+_NETWORK = re.compile(
+    r"^(udpin|udpout|udp|tcpin|tcp):(?://)?(?P<host>[^:/]+):(?P<port>\d+)$", re.ASCII
+)
+_SERIAL = re.compile(
+    r"^(?:serial:(?://)?)?(?P<device>/dev/[^,:]+|COM\d+)(?:[,:](?P<baud>\d+))?$", re.ASCII
+)
 
 
 @dataclass(frozen=True)

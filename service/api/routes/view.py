@@ -27,7 +27,7 @@ from missions.viewer import (
 from missions.viewer.page import ListedTask, task_list_page
 from service.deps import ServiceState, get_state
 from service.errors import ArtifactNotFoundError, TaskNotFoundError, TaskNotReadyError
-from service.storage import TaskRecord, TaskStatus
+from service.storage import MAX_OFFSET, TaskRecord, TaskStatus
 
 router = APIRouter(tags=["viewer"])
 
@@ -91,7 +91,7 @@ def _listed(record: TaskRecord) -> ListedTask:
 
 @router.get("/v1/viewer", response_class=HTMLResponse)
 def task_list(
-    offset: int = Query(0, ge=0),
+    offset: int = Query(0, ge=0, le=MAX_OFFSET),
     limit: int = Query(50, ge=1, le=500),
     state: ServiceState = Depends(get_state),
 ) -> HTMLResponse:
