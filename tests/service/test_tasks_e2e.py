@@ -89,9 +89,9 @@ def test_listing_pages_and_filters(done):
     assert client.get("/v1/tasks", params={"status": "bogus"}).status_code == 422
 
 
-def mock_vehicles(client, task: dict, drones) -> tuple[list, list[str]]:
-    """A started mock autopilot per drone (1-based), homed where its mission's seq 0 is;
-    stop them when done."""
+def mock_vehicles(client, task: dict, drones, with_plan_parameters=False) -> tuple[list, list[str]]:
+    """A started mock autopilot per drone (1-based), homed where its mission's seq 0 is,
+    booted with ArduCopter's defaults or with the drone's .parm loaded; stop them when done."""
     clock = SimClock(speedup=5.0)
     mocks, addresses = [], []
     for k in drones:
@@ -100,7 +100,16 @@ def mock_vehicles(client, task: dict, drones) -> tuple[list, list[str]]:
         )
         home = stored.items[0]
         port = free_udp_port()
-        config = MockConfig(system_id=k, home=Geodetic(home.x * 1e-7, home.y * 1e-7, home.z))
+        parameters = (
+            parse_parameter_file(client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.parm").text)
+            if with_plan_parameters
+            else {}
+        )
+        config = MockConfig(
+            system_id=k,
+            home=Geodetic(home.x * 1e-7, home.y * 1e-7, home.z),
+            parameters=parameters,
+        )
         mocks.append(MockAutopilot(f"udpin:127.0.0.1:{port}", config, clock).start())
         addresses.append(f"udpout:127.0.0.1:{port}")
     return mocks, addresses
@@ -146,7 +155,7 @@ def test_each_vehicle_reports_its_own_outcome(done):
     """Issue 10, item 7: drone 2's address cannot even be opened (its port is taken); drones
     1 and 3 still get their missions, and only drone 2 reports the error."""
     client, task = done
-    mocks, addresses = mock_vehicles(client, task, (1, 3))
+    mocks, addresses = mock_vehicles(client, task, (1, 3), with_plan_parameters=True)
     taken = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     taken.bind(("127.0.0.1", 0))
     busy = f"udpin:127.0.0.1:{taken.getsockname()[1]}"
