@@ -28,6 +28,7 @@ from missions.mavlink.errors import (
     MavlinkTimeoutError,
 )
 from missions.mavlink.messages import (
+    MessageSpec,
     command_long,
     command_result_name,
     dialect,
@@ -145,6 +146,16 @@ class StartReport:
     resent: tuple[str, ...]
 
 
+def _send_back_to_back(links: Sequence[VehicleLink], specs: Sequence[MessageSpec]) -> list[float]:
+    """Send each vehicle its message, all built beforehand so that the sends are
+    microseconds apart; the ground's monotonic time of each send [s]."""
+    sent = []
+    for link, spec in zip(links, specs, strict=True):
+        link.send(spec)
+        sent.append(time.monotonic())
+    return sent
+
+
 def start_missions(links: Sequence[VehicleLink], policy: RetryPolicy) -> StartReport:
     """Send MAV_CMD_MISSION_START to every vehicle at once (module docstring).
 
@@ -157,11 +168,7 @@ def start_missions(links: Sequence[VehicleLink], policy: RetryPolicy) -> StartRe
     command = int(MavCmd.MISSION_START)
     inboxes = [link.subscribe(("COMMAND_ACK",)) for link in links]
     try:
-        specs = [command_long(command, link.target) for link in links]
-        sent_at = []
-        for link, spec in zip(links, specs, strict=True):
-            link.send(spec)
-            sent_at.append(time.monotonic())
+        sent_at = _send_back_to_back(links, [command_long(command, link.target) for link in links])
         pending = dict(enumerate(links))
         failures: dict[str, MavlinkError] = {}
         resent: set[str] = set()
@@ -241,11 +248,7 @@ def release(links: Sequence[VehicleLink], seq: int, policy: RetryPolicy) -> Rele
     """
     inboxes = [link.subscribe(("MISSION_CURRENT",)) for link in links]
     try:
-        specs = [mission_set_current(seq, link.target) for link in links]
-        sent = []
-        for link, spec in zip(links, specs, strict=True):
-            link.send(spec)
-            sent.append(time.monotonic())
+        sent = _send_back_to_back(links, [mission_set_current(seq, link.target) for link in links])
         until = time.monotonic() + policy.request_timeout_s
         confirmed: list[float | None] = []
         for inbox in inboxes:
