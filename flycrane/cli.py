@@ -137,7 +137,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
+    """The command line; of the plug-in commands (entry points ``flycrane.commands``) only the
+    one ``argv`` names is loaded, all of them when it names none (``--help``, a typo): each
+    imports its own stack (MAVLink, SITL, the service), a second on every other command."""
     parser = argparse.ArgumentParser(
         prog="flycrane",
         description="FlyCrane: statics, planning and MAVLink missions for a 3-drone aerial crane",
@@ -180,14 +183,17 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--out", default="bench-results", help="directory for the results")
     bench.set_defaults(handler=_cmd_bench)
 
-    for entry in entry_points(group="flycrane.commands"):
-        entry.load()(sub)
+    plugins = entry_points(group="flycrane.commands")
+    named = next((a for a in argv if not a.startswith("-")), None)
+    for entry in plugins:
+        if named not in plugins.names or entry.name == named:
+            entry.load()(sub)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(argv).parse_args(argv)
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",

@@ -62,6 +62,19 @@ class Contact:
         return f"{self.body} hits {self.other} (by {self.depth:.3g} m)"
 
 
+@dataclass(frozen=True)
+class Clearance:
+    """How far one configuration is from touching: the closest robot body, the obstacle
+    (or ``"ground"``) it is closest to, and their distance [m]."""
+
+    distance: float
+    body: str
+    other: str
+
+    def __str__(self) -> str:
+        return f"{self.body} {self.distance:.3f} m from {self.other}"
+
+
 @dataclass
 class _Pose:
     """World poses of every robot body for N configurations."""
@@ -326,20 +339,31 @@ class CollisionChecker:
 
     def clearance(self, q: ArrayLike) -> float:
         """Smallest distance from any robot body to any obstacle or the ground [m] (9,),
-        beyond the scene's ``obstacle_clearance`` (to the grown obstacles, the raised ground).
+        beyond the scene's ``obstacle_clearance``: :attr:`Clearance.distance` of
+        :meth:`closest`."""
+        return self.closest(q).distance
+
+    def closest(self, q: ArrayLike) -> Clearance:
+        """The closest robot body and obstacle (or the ground) of one configuration (9,),
+        and their distance beyond the scene's ``obstacle_clearance`` (to the grown obstacles,
+        the raised ground) [m]; negative where they overlap (fcl's signed distance).
 
         Obstacles by fcl's distance; the ground from the lowest point of each body's world
         box, which is exact for spheres, capsules and boxes (fcl's halfspace distance
         crashes in python-fcl 0.7).
         """
         pose = self._pose(as_configurations(q)[:1])
-        request = fcl.DistanceRequest()
+        request = fcl.DistanceRequest(enable_signed_distance=True)
         centers, halves, kinds = self._robot_boxes(pose)
-        lowest = float((centers[0, :, 2] - halves[0, :, 2]).min())
-        best = lowest - self._ground_z if self.scene.ground else np.inf
+        lowest = centers[0, :, 2] - halves[0, :, 2]
+        best = Clearance(np.inf, "", "")
+        if self.scene.ground:
+            body = int(np.argmin(lowest))
+            best = Clearance(float(lowest[body] - self._ground_z), self._name(*kinds[body]), GROUND)
         for kind, index in kinds:
             mine = self._robot_object(kind, index, pose, 0)
             for obstacle in self.obstacles:
                 gap = fcl.distance(mine, obstacle.obstacle, request, fcl.DistanceResult())
-                best = min(best, gap)
-        return float(best)
+                if gap < best.distance:
+                    best = Clearance(float(gap), self._name(kind, index), obstacle.name)
+        return best

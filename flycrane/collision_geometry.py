@@ -10,14 +10,29 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NoReturn
 
 import fcl
 import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.cable_system import CableSystem
+from flycrane.errors import FieldProblem, InputError
 from flycrane.kinematics import matrix_from_tilt_torsion
+from flycrane.quantities import MAX_LENGTH
 from flycrane.scene import Box, Cylinder, Mesh, SceneSpec, Sphere
+
+#: Largest extent of a usable body [m]: a shape within MAX_LENGTH of its frame's origin,
+#: posed within MAX_LENGTH of the world's. Beyond it the broad phase's squared distances lose
+#: the precision that decides a contact, and at overflow a body is never checked at all.
+USABLE_EXTENT = 4.0 * MAX_LENGTH
+
+
+class CollisionBodyError(InputError):
+    """A shape the collision checker cannot use (not finite, too large, no triangle).
+
+    Raised instead of building a checker that would silently never see the body.
+    """
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,9 +57,16 @@ def _bvh(vertices: NDArray, faces: NDArray) -> fcl.BVHModel:
 
 
 def body_from_shape(
-    shape: Box | Cylinder | Sphere | Mesh, name: str, base_dir: Path | None
+    shape: Box | Cylinder | Sphere | Mesh, name: str, base_dir: Path | None, field: str = ""
 ) -> Body:
-    """A :class:`Body` for a scene shape (pose relative to its parent frame)."""
+    """A :class:`Body` for a scene shape (pose relative to its parent frame).
+
+    Raises
+    ------
+    CollisionBodyError
+        If the checker could not use the body (:func:`require_usable`); ``field`` names the
+        shape in the error (e.g. ``scene.obstacles[2]``).
+    """
     rotation = matrix_from_tilt_torsion(np.array(shape.rotation))
     center = np.array(shape.center, dtype=float)
     offset = np.zeros(3)
@@ -57,14 +79,48 @@ def body_from_shape(
         geometry, half = fcl.Sphere(shape.radius), np.full(3, shape.radius)
     else:
         vertices, faces = shape.triangles(base_dir)
+        require_triangles(vertices, faces, field or name, name)
         geometry = _bvh(vertices, faces)
         low, high = vertices.min(axis=0), vertices.max(axis=0)
         offset, half = (low + high) / 2, (high - low) / 2
-    return Body(name, geometry, center, rotation, center + rotation @ offset, half)
+    body = Body(name, geometry, center, rotation, center + rotation @ offset, half)
+    require_usable(body, field or name)
+    return body
 
 
-def platform_body(system: CableSystem, thickness: float) -> Body:
-    """The platform as a thin prism through the convex hull of the points B'_i (in z')."""
+def require_triangles(vertices: NDArray, faces: NDArray, field: str, name: str) -> None:
+    """Refuse a mesh with a non-finite vertex or no triangle of positive area: fcl would
+    never report a contact with it."""
+    vertices = np.asarray(vertices, dtype=float)
+    faces = np.asarray(faces, dtype=int).reshape(-1, 3)
+    if not np.all(np.isfinite(vertices)):
+        _unusable(field, name, "a vertex is not finite")
+    if len(faces) and faces.min() >= 0 and faces.max() < len(vertices):
+        corners = vertices[faces]
+        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        if np.any(np.linalg.norm(normals, axis=1) > 0.0):
+            return
+    _unusable(field, name, "it has no triangle of positive area")
+
+
+def require_usable(body: Body, field: str) -> None:
+    """Refuse a body whose pose or box is not finite or extends beyond USABLE_EXTENT."""
+    numbers = np.concatenate([body.center, body.rotation.ravel(), body.box_center, body.half_size])
+    if not np.all(np.isfinite(numbers)):
+        _unusable(field, body.name, "its pose or size is not finite")
+    if np.abs(body.box_center).max() + body.half_size.max() > USABLE_EXTENT:
+        _unusable(field, body.name, f"it extends beyond {USABLE_EXTENT:g} m from the origin")
+
+
+def _unusable(field: str, name: str, reason: str) -> NoReturn:
+    raise CollisionBodyError(
+        [FieldProblem(field, f"{name}: the collision checker cannot use it: {reason}")]
+    )
+
+
+def platform_prism(system: CableSystem, thickness: float) -> tuple[NDArray, NDArray]:
+    """The platform as a thin prism through the convex hull of the points B'_i (in z'):
+    vertices (2 n, 3) in the platform frame [m] and triangles (F, 3) indexing them."""
     points = np.unique(np.round(system.platform_points, 12), axis=0)
     centroid = points.mean(axis=0)
     angle = np.arctan2(points[:, 1] - centroid[1], points[:, 0] - centroid[0])
@@ -77,10 +133,16 @@ def platform_body(system: CableSystem, thickness: float) -> Body:
     for i in range(n):
         j = (i + 1) % n
         faces += [(i, n + i, n + j), (i, n + j, j)]
+    return vertices, np.array(faces)
+
+
+def platform_body(system: CableSystem, thickness: float) -> Body:
+    """The platform's collision body (:func:`platform_prism`)."""
+    vertices, faces = platform_prism(system, thickness)
     low, high = vertices.min(axis=0), vertices.max(axis=0)
     return Body(
         "platform",
-        _bvh(vertices, np.array(faces)),
+        _bvh(vertices, faces),
         np.zeros(3),
         np.eye(3),
         (low + high) / 2,
@@ -93,7 +155,8 @@ def obstacle_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
     excluded); names and indices are the scene's."""
     bodies = []
     for index, shape in enumerate(scene.grown_obstacles()):
-        body = body_from_shape(shape, shape.name or f"{shape.kind} {index + 1}", base_dir)
+        name = scene.obstacle_name(index)
+        body = body_from_shape(shape, name, base_dir, f"scene.obstacles[{index}]")
         placed = fcl.CollisionObject(body.geometry, fcl.Transform(body.rotation, body.center))
         bodies.append(
             Body(
@@ -112,7 +175,12 @@ def obstacle_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
 def payload_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
     """The payload's shapes, posed in the platform frame."""
     return [
-        body_from_shape(shape, shape.name or f"payload {shape.kind} {index + 1}", base_dir)
+        body_from_shape(
+            shape,
+            shape.name or f"payload {shape.kind} {index + 1}",
+            base_dir,
+            f"scene.payload.shapes[{index}]",
+        )
         for index, shape in enumerate(scene.payload.shapes)
     ]
 

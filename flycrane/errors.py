@@ -6,8 +6,9 @@ it (which field, which cable or drone, by how much), not only a message.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 
 class FlyCraneError(Exception):
@@ -41,3 +42,61 @@ class SystemSpecError(InputError):
 
 class ConfigurationError(InputError):
     """An array of configurations has the wrong shape or invalid values."""
+
+
+#: Values of discriminator fields (``kind``): pydantic puts the chosen union branch in an
+#: error's location, which says nothing to the user that the field path does not.
+UNION_TAGS = frozenset({"octahedral", "generic", "box", "cylinder", "sphere", "mesh"})
+
+#: Error types of a union branch the input plainly did not mean (a dict given where the
+#: other branch wanted a string or a list, or the other way round).
+_WRONG_BRANCH: dict[type, frozenset[str]] = {
+    dict: frozenset({"string_type", "list_type", "tuple_type"}),
+    list: frozenset({"model_type", "dict_type", "model_attributes_type", "string_type"}),
+    str: frozenset({"model_type", "dict_type", "model_attributes_type", "tuple_type"}),
+}
+
+
+def _is_field(part: int | str) -> bool:
+    """Whether a location part names a field or an index, not a pydantic branch tag
+    (``str``, ``tuple[...]``, ``function-after[...]``, a model's class name, a ``kind``)."""
+    if isinstance(part, int):
+        return True
+    return not (
+        part in ("str", "int", "float", "bool", "none")
+        or "[" in part
+        or part.startswith("function-")
+        or part[:1].isupper()
+        or part in UNION_TAGS
+    )
+
+
+def readable_errors(errors: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Pydantic errors as ``{"loc", "msg", "type"}`` with field-only locations, without the
+    errors of union branches the input plainly did not mean, duplicates dropped."""
+    errors = list(errors)
+    cleaned, seen = [], set()
+    for error in errors:
+        kind = next((k for k in _WRONG_BRANCH if isinstance(error.get("input"), k)), None)
+        if kind is not None and error["type"] in _WRONG_BRANCH[kind]:
+            continue
+        loc = [part for part in error["loc"] if _is_field(part)]
+        message = str(error["msg"]).removeprefix("Value error, ")
+        key = (tuple(loc), message)
+        if key not in seen:
+            seen.add(key)
+            cleaned.append({"loc": loc, "msg": message, "type": error["type"]})
+    if cleaned or not errors:
+        return cleaned
+    return [{"loc": list(e["loc"]), "msg": str(e["msg"]), "type": e["type"]} for e in errors]
+
+
+def dotted(loc: Sequence[int | str]) -> str:
+    """A location as a user writes it: ``scene.obstacles[2].radius``."""
+    text = ""
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        else:
+            text += ("." if text else "") + str(part).rstrip("_")
+    return text

@@ -98,10 +98,12 @@ def tilt_torsion_from_matrix(r: ArrayLike) -> NDArray[np.float64]:
     (theta = 0 or pi) phi is returned as 0, the chart's choice.
     """
     r = np.asarray(r, dtype=float)
-    theta = np.arccos(np.clip(r[..., 2, 2], -1.0, 1.0))
-    # Below ~1e-9 of sin(theta) the azimuth phi is numerical noise.
-    tilted = np.hypot(r[..., 0, 2], r[..., 1, 2]) > 1e-9
-    phi = np.where(tilted, np.arctan2(r[..., 1, 2], r[..., 0, 2]), 0.0)
+    # arctan2 of (sin, cos) keeps small tilts that arccos(R22) rounds to zero below ~1e-8 rad.
+    sin_theta = np.hypot(r[..., 0, 2], r[..., 1, 2])
+    theta = np.arctan2(sin_theta, r[..., 2, 2])
+    # Any phi reproduces the rotation once sigma is derived from it below, so phi is only
+    # pinned (to 0) where the tilt axis is exactly undefined.
+    phi = np.where(sin_theta > 0.0, np.arctan2(r[..., 1, 2], r[..., 0, 2]), 0.0)
     total = np.arctan2(r[..., 1, 0] - r[..., 0, 1], r[..., 0, 0] + r[..., 1, 1])
     difference = np.arctan2(-(r[..., 1, 0] + r[..., 0, 1]), r[..., 1, 1] - r[..., 0, 0])
     sigma = np.where(r[..., 2, 2] > 0.0, total, 2.0 * phi - difference)

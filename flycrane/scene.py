@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -19,11 +20,20 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from flycrane.errors import FieldProblem, InputError
+from flycrane.quantities import (
+    MAX_LENGTH,
+    Configuration,
+    Length,
+    Mass,
+    NonNegativeLength,
+    Orientation,
+    Point,
+)
 from flycrane.system import SystemSpec, problems_from_validation_error
 
-Vec3 = tuple[float, float, float]
-Positive = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
-Configuration = tuple[float, float, float, float, float, float, float, float, float]
+StrictIndex = Annotated[int, Field(ge=0, strict=True)]
+#: Every scene schema: numbers finite (flycrane.quantities), unknown fields refused.
+_CONFIG = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 #: Where the scenes shipped with the package live.
 SCENES_DIR = Path(__file__).parent / "scenes"
@@ -34,68 +44,87 @@ class SceneError(InputError):
 
 
 class _Shape(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = _CONFIG
 
-    name: str = Field("", description="used in collision reports; default: kind and index")
-    center: Vec3 = (0.0, 0.0, 0.0)
-    rotation: Vec3 = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
-
-    @field_validator("center", "rotation")
-    @classmethod
-    def _finite(cls, value: Vec3) -> Vec3:
-        if not all(math.isfinite(v) for v in value):
-            raise ValueError("must be finite")
-        return value
+    name: str = Field(
+        "", max_length=200, description="used in collision reports; default: kind and index"
+    )
+    center: Point = (0.0, 0.0, 0.0)
+    rotation: Orientation = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
 
 
 class Box(_Shape):
     kind: Literal["box"] = "box"
-    size: tuple[Positive, Positive, Positive] = Field(description="edge lengths x, y, z [m]")
+    size: tuple[Length, Length, Length] = Field(description="edge lengths x, y, z [m]")
 
 
 class Cylinder(_Shape):
     kind: Literal["cylinder"] = "cylinder"
-    radius: Positive
-    height: Positive = Field(description="along the shape's own z axis [m]")
+    radius: Length
+    height: Length = Field(description="along the shape's own z axis [m]")
 
 
 class Sphere(_Shape):
     kind: Literal["sphere"] = "sphere"
-    radius: Positive
+    radius: Length
 
 
 class Mesh(_Shape):
     kind: Literal["mesh"] = "mesh"
     file: str | None = Field(None, description="STL/OBJ path, relative to the scene file")
-    vertices: tuple[Vec3, ...] | None = None
-    faces: tuple[tuple[int, int, int], ...] | None = None
-    scale: Positive = 1.0
+    vertices: tuple[Point, ...] | None = None
+    faces: tuple[tuple[StrictIndex, StrictIndex, StrictIndex], ...] | None = None
+    scale: Length = 1.0
 
     @model_validator(mode="after")
     def _one_source(self) -> Mesh:
         inline = self.vertices is not None or self.faces is not None
         if (self.file is None) == (not inline):
             raise ValueError("give either file, or vertices and faces")
-        if inline:
+        if self.vertices is not None or self.faces is not None:
             if not self.vertices or not self.faces:
                 raise ValueError("vertices and faces must both be non-empty")
             top = len(self.vertices)
             if any(not 0 <= i < top for face in self.faces for i in face):
                 raise ValueError(f"faces index vertices 0..{top - 1} only")
+            _check_extent(self.scale * np.asarray(self.vertices, float))
         return self
 
     def triangles(self, base_dir: Path | None) -> tuple[np.ndarray, np.ndarray]:
-        """(vertices (V, 3) scaled, faces (F, 3)) from the file or the inline data."""
-        if self.file is None:
+        """(vertices (V, 3) scaled, faces (F, 3)) from the file or the inline data.
+
+        Raises
+        ------
+        SceneError
+            The file cannot be read as a triangle mesh, or its vertices are not finite or
+            lie beyond ``MAX_LENGTH`` once scaled (field ``mesh.file``).
+        """
+        if self.vertices is not None and self.faces is not None:
             return self.scale * np.asarray(self.vertices, float), np.asarray(self.faces, int)
         import trimesh
 
-        path = Path(self.file) if base_dir is None else base_dir / self.file
+        path = Path(str(self.file)) if base_dir is None else base_dir / str(self.file)
         try:
-            mesh = trimesh.load(path, force="mesh")
-        except (OSError, ValueError) as error:
+            mesh = trimesh.load_mesh(path)
+            vertices = self.scale * np.asarray(mesh.vertices, float)
+            faces = np.asarray(mesh.faces, int)
+            _check_extent(vertices)
+        except (OSError, ValueError, AttributeError) as error:
             raise SceneError([FieldProblem("mesh.file", f"{path}: {error}")]) from None
-        return self.scale * np.asarray(mesh.vertices, float), np.asarray(mesh.faces, int)
+        return vertices, faces
+
+
+def _check_extent(vertices: np.ndarray) -> None:
+    """Refuse vertices (V, 3) that are not finite or lie beyond MAX_LENGTH (a collision
+    body whose size overflows is never checked: flycrane.quantities)."""
+    if not np.all(np.isfinite(vertices)):
+        raise ValueError("vertices must be finite numbers")
+    extent = float(np.abs(vertices).max(initial=0.0))
+    if extent > MAX_LENGTH:
+        raise ValueError(
+            f"vertices must lie within {MAX_LENGTH:g} m of the shape's origin once scaled "
+            f"(one is {extent:.3g} m away)"
+        )
 
 
 Shape = Annotated[Box | Cylinder | Sphere | Mesh, Field(discriminator="kind")]
@@ -104,20 +133,20 @@ Shape = Annotated[Box | Cylinder | Sphere | Mesh, Field(discriminator="kind")]
 class Payload(BaseModel):
     """What the platform carries: shapes in the platform frame, and the mass properties."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = _CONFIG
 
     shapes: tuple[Shape, ...] = ()
-    mass: Positive | None = Field(None, description="platform plus payload [kg]; None: system's")
-    com_offset: Vec3 | None = Field(None, description="c' [m], platform frame; None: system's")
+    mass: Mass | None = Field(None, description="platform plus payload [kg]; None: system's")
+    com_offset: Point | None = Field(None, description="c' [m], platform frame; None: system's")
 
 
 class Bounds(BaseModel):
     """Where the planner samples: a box for P, a largest tilt, an alpha range."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = _CONFIG
 
-    position_low: Vec3
-    position_high: Vec3
+    position_low: Point
+    position_high: Point
     max_tilt: float = Field(0.6, gt=0.0, le=math.pi, description="largest theta [rad]")
     alpha_low: float = Field(0.3, description="[rad]")
     alpha_high: float = Field(1.8, description="[rad]")
@@ -140,14 +169,14 @@ class Bounds(BaseModel):
 class CollisionSettings(BaseModel):
     """Sizes of the robot's collision bodies (design.md s.6 defaults)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = _CONFIG
 
-    cable_radius: Positive = 0.01
-    drone_radius: Positive = 0.3
-    min_drone_separation: Positive = Field(1.0, description="drone centre distance [m]")
-    platform_thickness: Positive = Field(0.02, description="thin prism through B_i [m]")
-    cable_clearance_at_platform: float = Field(
-        0.05, ge=0.0, description="cable length near b_i not checked against the payload [m]"
+    cable_radius: Length = 0.01
+    drone_radius: Length = 0.3
+    min_drone_separation: Length = Field(1.0, description="drone centre distance [m]")
+    platform_thickness: Length = Field(0.02, description="thin prism through B_i [m]")
+    cable_clearance_at_platform: NonNegativeLength = Field(
+        0.05, description="cable length near b_i not checked against the payload [m]"
     )
     obstacle_clearance: float = Field(
         0.0,
@@ -162,10 +191,10 @@ class CollisionSettings(BaseModel):
 class SceneSpec(BaseModel):
     """A complete planning scene."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = _CONFIG
 
-    name: str = "scene"
-    description: str = ""
+    name: str = Field("scene", max_length=200)
+    description: str = Field("", max_length=10_000)
     obstacles: tuple[Shape, ...] = ()
     ground: bool = Field(True, description="the plane z = 0 is an obstacle")
     payload: Payload = Field(default_factory=Payload)
@@ -185,6 +214,20 @@ class SceneSpec(BaseModel):
                 )
         return self
 
+    def obstacle_name(self, index: int) -> str:
+        """How collision reports name obstacle ``index`` (its name, else kind and number)."""
+        shape = self.obstacles[index]
+        return shape.name or f"{shape.kind} {index + 1}"
+
+    def without(self, names: Iterable[str]) -> SceneSpec:
+        """The scene without the obstacles of these names (``"ground"``: without the
+        ground), e.g. where touching them is intended."""
+        names = set(names)
+        kept = tuple(o for i, o in enumerate(self.obstacles) if self.obstacle_name(i) not in names)
+        return self.model_copy(
+            update={"obstacles": kept, "ground": self.ground and "ground" not in names}
+        )
+
     def grown_obstacles(self) -> tuple[Shape, ...]:
         """The obstacles grown by ``collision.obstacle_clearance`` on every side (a box, a
         cylinder's radius and height, a sphere's radius): every point within the clearance
@@ -201,9 +244,7 @@ class SceneSpec(BaseModel):
 
     @field_validator("start", "goal")
     @classmethod
-    def _finite_configuration(cls, value: Configuration) -> Configuration:
-        if not all(math.isfinite(v) for v in value):
-            raise ValueError("must be 9 finite numbers")
+    def _tilt_in_range(cls, value: Configuration) -> Configuration:
         if not 0.0 <= value[4] <= math.pi:
             raise ValueError(f"tilt theta = {value[4]} not in [0, pi]")
         return value
@@ -211,7 +252,7 @@ class SceneSpec(BaseModel):
     def system_spec(self, base: SystemSpec | None = None) -> SystemSpec:
         """The system carrying this scene's payload (its mass and centre of mass, if set)."""
         base = base or SystemSpec()
-        update = {}
+        update: dict[str, object] = {}
         if self.payload.mass is not None:
             update["platform_mass"] = self.payload.mass
         if self.payload.com_offset is not None:

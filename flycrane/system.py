@@ -29,21 +29,27 @@ from pydantic import (
     model_validator,
 )
 
-from flycrane.errors import FieldProblem, SystemSpecError
+from flycrane.errors import FieldProblem, SystemSpecError, dotted, readable_errors
+from flycrane.quantities import (
+    MAX_FORCE,
+    MAX_GRAVITY,
+    Force,
+    Length,
+    Mass,
+    NonNegativeForce,
+    PerturbationRadius,
+    Point,
+)
 
 #: Cable pairs of each drone, 0-based: drone k hangs from cables DRONE_CABLES[k].
 DRONE_CABLES: tuple[tuple[int, int], ...] = ((0, 5), (1, 2), (3, 4))
-
-Vec3 = tuple[float, float, float]
-PositiveFloat = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
-NonNegativeFloat = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
 
 
 def _one_for_all(count: int, item: str) -> BeforeValidator:
     """Accept one number for all ``count`` items (drones, cables) as well as a list."""
 
     def broadcast(value: object) -> object:
-        if isinstance(value, int | float):
+        if isinstance(value, int | float) and not isinstance(value, bool):
             return (value,) * count
         if isinstance(value, list | tuple) and len(value) != count:
             raise ValueError(f"expected one number or {count} (one per {item}), got {len(value)}")
@@ -52,26 +58,25 @@ def _one_for_all(count: int, item: str) -> BeforeValidator:
     return BeforeValidator(broadcast)
 
 
-PerDrone = Annotated[tuple[PositiveFloat, PositiveFloat, PositiveFloat], _one_for_all(3, "drone")]
-PerCable = Annotated[
-    tuple[PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat],
-    _one_for_all(6, "cable"),
-]
-PerCableNonNegative = Annotated[
+DroneMasses = Annotated[tuple[Mass, Mass, Mass], _one_for_all(3, "drone")]
+DroneForces = Annotated[tuple[Force, Force, Force], _one_for_all(3, "drone")]
+CableForces = Annotated[tuple[Force, Force, Force, Force, Force, Force], _one_for_all(6, "cable")]
+CableNonNegativeForces = Annotated[
     tuple[
-        NonNegativeFloat,
-        NonNegativeFloat,
-        NonNegativeFloat,
-        NonNegativeFloat,
-        NonNegativeFloat,
-        NonNegativeFloat,
+        NonNegativeForce,
+        NonNegativeForce,
+        NonNegativeForce,
+        NonNegativeForce,
+        NonNegativeForce,
+        NonNegativeForce,
     ],
     _one_for_all(6, "cable"),
 ]
 
 
 class _Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    # Numbers are finite everywhere (flycrane.quantities), and a bool is not a number.
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
 class OctahedralGeometry(_Frozen):
@@ -82,8 +87,8 @@ class OctahedralGeometry(_Frozen):
     """
 
     kind: Literal["octahedral"] = "octahedral"
-    side: PositiveFloat = Field(1.4, description="platform edge length s [m]")
-    cable_length: PositiveFloat = Field(2.0, description="length l of all six cables [m]")
+    side: Length = Field(1.4, description="platform edge length s [m]")
+    cable_length: Length = Field(2.0, description="length l of all six cables [m]")
 
     @model_validator(mode="after")
     def _cables_reach_over_edge(self) -> OctahedralGeometry:
@@ -107,21 +112,16 @@ class GenericGeometry(_Frozen):
     """A generic FlyCrane: six platform points B'_i (platform frame, relative to P) and lengths."""
 
     kind: Literal["generic"] = "generic"
-    platform_points_: tuple[Vec3, Vec3, Vec3, Vec3, Vec3, Vec3] = Field(
+    platform_points_: tuple[Point, Point, Point, Point, Point, Point] = Field(
         alias="platform_points", description="B'_1..B'_6 in the platform frame [m]"
     )
-    cable_lengths_: tuple[
-        PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat, PositiveFloat
-    ] = Field(alias="cable_lengths", description="l_1..l_6 [m]")
+    cable_lengths_: tuple[Length, Length, Length, Length, Length, Length] = Field(
+        alias="cable_lengths", description="l_1..l_6 [m]"
+    )
 
-    model_config = ConfigDict(frozen=True, extra="forbid", populate_by_name=True)
-
-    @field_validator("platform_points_")
-    @classmethod
-    def _finite_points(cls, value: tuple[Vec3, ...]) -> tuple[Vec3, ...]:
-        if not np.all(np.isfinite(np.asarray(value))):
-            raise ValueError("platform points must be finite numbers")
-        return value
+    model_config = ConfigDict(
+        frozen=True, extra="forbid", populate_by_name=True, allow_inf_nan=False
+    )
 
     @model_validator(mode="after")
     def _each_drone_has_a_triangle(self) -> GenericGeometry:
@@ -155,8 +155,8 @@ class Perturbation(_Frozen):
     6x6 ``matrix`` (force rows first, then torque rows, at P in world axes).
     """
 
-    force: PositiveFloat = Field(2.0, description="df: force perturbation radius [N]")
-    torque: PositiveFloat = Field(0.3, description="dt: torque perturbation radius [N m]")
+    force: PerturbationRadius = Field(2.0, description="df: force perturbation radius [N]")
+    torque: PerturbationRadius = Field(0.3, description="dt: torque perturbation radius [N m]")
     matrix: tuple[tuple[float, ...], ...] | None = Field(
         None, description="full E (6x6, SPD); overrides force/torque when given"
     )
@@ -173,6 +173,9 @@ class Perturbation(_Frozen):
             raise ValueError(f"must be 6x6, got shape {e.shape}")
         if not np.all(np.isfinite(e)):
             raise ValueError("must contain finite numbers only")
+        # Its inverse scales the tension ranges: entries beyond 1/MIN_PERTURBATION^2 overflow.
+        if np.abs(e).max() > MAX_FORCE**2:
+            raise ValueError(f"entries must be at most {MAX_FORCE**2:g} in size")
         # Relative tolerance: values typed by hand or printed with ~12 digits must pass.
         if not np.allclose(e, e.T, rtol=1e-9, atol=1e-12 * np.abs(e).max()):
             raise ValueError("must be symmetric")
@@ -196,31 +199,26 @@ class SystemSpec(_Frozen):
     geometry: OctahedralGeometry | GenericGeometry = Field(
         default_factory=OctahedralGeometry, discriminator="kind"
     )
-    platform_mass: PositiveFloat = Field(1.5, description="platform plus payload mass [kg]")
-    com_offset: Vec3 = Field(
+    platform_mass: Mass = Field(1.5, description="platform plus payload mass [kg]")
+    com_offset: Point = Field(
         (0.0, 0.0, 0.0), description="centre of mass c' relative to P, platform frame [m]"
     )
-    drone_mass: PerDrone = Field(
+    drone_mass: DroneMasses = Field(
         (1.0, 1.0, 1.0), description="mass M_k of each drone [kg]; one number sets all three"
     )
-    max_thrust: PerDrone = Field(
+    max_thrust: DroneForces = Field(
         (25.0, 25.0, 25.0), description="maximum thrust h_k [N]; one number sets all three"
     )
-    tension_min: PerCableNonNegative = Field(
+    tension_min: CableNonNegativeForces = Field(
         (0.5,) * 6, description="lower tension bound f_lo_i [N]; one number sets all six"
     )
-    tension_max: PerCable = Field(
+    tension_max: CableForces = Field(
         (30.0,) * 6, description="upper tension bound f_hi_i [N]; one number sets all six"
     )
     perturbation: Perturbation = Field(default_factory=Perturbation)
-    gravity: PositiveFloat = Field(9.81, description="g [m/s^2]")
-
-    @field_validator("com_offset")
-    @classmethod
-    def _finite_offset(cls, value: Vec3) -> Vec3:
-        if not all(math.isfinite(v) for v in value):
-            raise ValueError("must be finite")
-        return value
+    gravity: Annotated[float, Field(gt=0.0, le=MAX_GRAVITY, strict=True)] = Field(
+        9.81, description="g [m/s^2]"
+    )
 
     @model_validator(mode="after")
     def _limits_are_consistent(self) -> SystemSpec:
@@ -265,26 +263,12 @@ def system_preset(name: str) -> SystemSpec:
         ) from None
 
 
-#: Values of discriminator fields (``kind``): pydantic puts the chosen union branch in an
-#: error's location, which says nothing to the user that the field path does not.
-UNION_TAGS = frozenset({"octahedral", "generic", "box", "cylinder", "sphere", "mesh"})
-
-
 def problems_from_validation_error(error: ValidationError) -> list[FieldProblem]:
     """Field-named problems from a pydantic error (locations joined as ``a.b[2]``)."""
-    problems = []
-    for item in error.errors():
-        parts: list[str] = []
-        for loc in item["loc"]:
-            if isinstance(loc, int):
-                parts.append(f"[{loc}]")
-            elif loc in UNION_TAGS:
-                continue
-            else:
-                parts.append(("." if parts else "") + str(loc).rstrip("_"))
-        message = str(item["msg"]).removeprefix("Value error, ")
-        problems.append(FieldProblem("".join(parts) or "system", message))
-    return problems
+    return [
+        FieldProblem(dotted(item["loc"]) or "system", item["msg"])
+        for item in readable_errors(error.errors())
+    ]
 
 
 def system_from_dict(data: dict, source: str | None = None) -> SystemSpec:

@@ -23,7 +23,7 @@ from missions.geodesy import DEGREE_UNIT
 from missions.items import DroneMission, MavFrame, MissionItem
 
 #: Wire frame -> file frame (decimal degrees).
-FILE_FRAME = {
+FILE_FRAME: dict[int, MavFrame] = {
     MavFrame.GLOBAL_INT: MavFrame.GLOBAL,
     MavFrame.GLOBAL_RELATIVE_ALT_INT: MavFrame.GLOBAL_RELATIVE_ALT,
 }

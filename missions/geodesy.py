@@ -3,8 +3,9 @@
 MISSION_ITEM_INT carries latitude and longitude as integers of 1e-7 degree (about 1.1 cm).
 We round half away from zero, never truncate: truncation biases every coordinate towards
 the equator and the prime meridian, by up to 1.1 cm, differently for each drone. The
-altitude travels as a float32 [m]; ArduPilot keeps it in whole centimetres
-(:func:`ardupilot_altitude`).
+altitude travels as a float32 [m]; ArduPilot keeps it in whole centimetres, truncated
+(:func:`ardupilot_altitude`), so a mission writes the middle of the centimetre it means
+(:func:`mission_altitude`).
 """
 
 from __future__ import annotations
@@ -56,3 +57,17 @@ def ardupilot_altitude(z: ArrayLike) -> NDArray[np.float64]:
     """
     product = np.asarray(z, dtype=np.float32) * np.float32(100.0)
     return np.trunc(product).astype(np.float64) / 100.0
+
+
+def mission_altitude(altitude: ArrayLike) -> NDArray[np.float64]:
+    """The item ``z`` [m] that ArduPilot stores as the whole centimetre nearest
+    ``altitude``: the middle of that centimetre.
+
+    Writing the centimetre itself is not enough: ``n / 100`` is often just below it in
+    float32 (0.29 is 0.28999999) or in the float64 of a planned position (6.75 m came out of
+    the ENU round trip as 6.7499995), and :func:`ardupilot_altitude` truncates both to the
+    centimetre below: a Puzzle leg planned as a 3 cm climb was flown as 4 cm, 0.36 s late on
+    SITL. Half a centimetre is far beyond float32's resolution below 80 km.
+    """
+    centimetres = np.round(np.asarray(altitude, dtype=float) * 100.0)
+    return (centimetres + np.copysign(0.5, centimetres)) / 100.0

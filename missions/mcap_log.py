@@ -12,6 +12,7 @@ Topics (log time = mission start + track time):
 - ``/annotations/tensions``, ``/annotations/thrusts``, ``/annotations/cost`` at every
   waypoint (JSON);
 - ``/mission/drone{k}`` the mission items per drone, once (JSON);
+- any further JSON records the caller adds (a flight's figures, ``missions.flight_report``);
 - metadata records ``system``, ``scene``, ``planner``, ``mission`` (JSON texts).
 """
 
@@ -43,7 +44,7 @@ from missions.formats import mission_json
 from missions.geodesy import geodetic_from_enu
 from missions.items import DroneMission
 from missions.options import MissionOptions
-from missions.tracks import Track
+from missions.tracks import Track, samples_at_rate
 
 GREY, ORANGE, BLUE, RED = (
     (0.6, 0.6, 0.6, 0.5),
@@ -60,11 +61,13 @@ class LogInputs:
     system: CableSystem
     scene: SceneSpec
     track: Track
-    annotations: Annotations
+    annotations: Annotations | None  #: the waypoints' statics (None: a flown track)
     missions: Sequence[DroneMission]
     options: MissionOptions
     start_ns: int  #: log time of mission time 0 [ns since the Unix epoch]
     metadata: Mapping[str, Mapping[str, Any]]  #: name -> plain data (system, planner, ...)
+    #: further JSON messages: (mission time [s], topic, body)
+    records: Sequence[tuple[float, str, Mapping[str, Any]]] = ()
 
 
 def _set_pose(pose, position, rotation) -> None:
@@ -94,7 +97,7 @@ def _add_shape(entity, shape, position, rotation, rgba) -> None:
         primitive.bottom_scale = primitive.top_scale = 1.0
     else:  # Mesh: inline triangles only (file meshes are drawn by their bounding box)
         primitive = entity.triangles.add()
-        if isinstance(shape, Mesh) and shape.vertices is not None:
+        if isinstance(shape, Mesh) and shape.vertices is not None and shape.faces is not None:
             for face in shape.faces:
                 for index in face:
                     point = primitive.points.add()
@@ -156,8 +159,7 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
     """Write the log (module docstring); returns its path."""
     path = Path(path)
     track, start = inputs.track, inputs.start_ns
-    samples = np.unique(np.searchsorted(track.time, np.arange(0.0, track.duration, 1 / rate)))
-    samples = np.union1d(samples, [len(track.time) - 1])
+    samples = samples_at_rate(track.time, rate)
     messages: list[tuple[int, str, bytes]] = []
     stamp_of = lambda t: start + round(float(t) * 1e9)  # noqa: E731
     messages.append((start, "/scene", _static_update(inputs.scene, start).SerializeToString()))
@@ -186,7 +188,8 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
             )
             fix.timestamp.FromNanoseconds(stamp)
             messages.append((stamp, f"/drone{j + 1}/fix", fix.SerializeToString()))
-    for record in inputs.annotations.records():
+    annotations = inputs.annotations.records() if inputs.annotations is not None else []
+    for record in annotations:
         stamp = stamp_of(record["time"])
         tensions = {
             "time": record["time"],
@@ -205,6 +208,8 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
             ("/annotations/cost", cost),
         ):
             messages.append((stamp, topic, json.dumps(body).encode()))
+    for when, topic, extra in inputs.records:
+        messages.append((stamp_of(when), topic, json.dumps(extra).encode()))
     for mission in inputs.missions:
         messages.append(
             (start, f"/mission/drone{mission.drone}", json.dumps(mission_json(mission)).encode())
@@ -236,7 +241,7 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
             channels[topic] = writer.register_channel(topic, "json", json_schema)
         for sequence, (stamp, topic, data) in enumerate(messages):
             writer.add_message(channels[topic], stamp, data, stamp, sequence)
-        for name, data in inputs.metadata.items():
-            writer.add_metadata(name, {"json": json.dumps(data, default=str)})
+        for name, content in inputs.metadata.items():
+            writer.add_metadata(name, {"json": json.dumps(content, default=str)})
         writer.finish()
     return path

@@ -7,15 +7,22 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from missions.position_error import PositionErrorModel
+
+#: The log's time base range: instants the MCAP log's uint64 nanoseconds and every
+#: calendar library represent (years 1 and 9999 overflow a timestamp on the way).
+EARLIEST_START = datetime(2000, 1, 1, tzinfo=UTC)
+LATEST_START = datetime(2100, 1, 1, tzinfo=UTC)
+
 
 class GeodeticOrigin(BaseModel):
     """The task frame's origin: ENU (x east, y north, z up) starts here."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
-    latitude: float = Field(47.3977, ge=-90, le=90, description="[deg] WGS84")
-    longitude: float = Field(8.5456, ge=-180, le=180, description="[deg] WGS84")
-    altitude: float = Field(488.0, ge=-500, le=9000, description="[m] AMSL of z = 0")
+    latitude: float = Field(47.3977, ge=-90, le=90, strict=True, description="[deg] WGS84")
+    longitude: float = Field(8.5456, ge=-180, le=180, strict=True, description="[deg] WGS84")
+    altitude: float = Field(488.0, ge=-500, le=9000, strict=True, description="[m] AMSL of z = 0")
 
 
 class MissionOptions(BaseModel):
@@ -25,32 +32,65 @@ class MissionOptions(BaseModel):
     angular rate 0.2 rad/s) and an acceleration limit of 0.25 m/s^2, half of what a copter's
     position controller allows by default, so that speed changes at waypoints stay gentle
     for a hanging load.
+
+    Lower bounds keep the work finite: every check samples the mission every
+    ``check_resolution`` seconds, and a mission's duration grows as the speeds shrink.
     """
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     origin: GeodeticOrigin = Field(default_factory=GeodeticOrigin)
-    max_drone_speed: float = Field(0.5, gt=0, le=5.0, description="[m/s]")
-    max_angular_rate: float = Field(0.2, gt=0, le=2.0, description="platform [rad/s]")
-    max_acceleration: float = Field(0.25, gt=0, le=5.0, description="drones [m/s^2]")
+    max_drone_speed: float = Field(0.5, ge=0.05, le=5.0, strict=True, description="[m/s]")
+    max_angular_rate: float = Field(
+        0.2, ge=0.005, le=2.0, strict=True, description="platform [rad/s]"
+    )
+    max_acceleration: float = Field(
+        0.25, ge=0.01, le=5.0, strict=True, description="drones [m/s^2]"
+    )
     check_resolution: float = Field(
-        0.1, gt=0, le=5.0, description="time step [s] at which legs are checked"
+        0.1, ge=0.01, le=5.0, strict=True, description="time step [s] at which legs are checked"
     )
     max_platform_deviation: float = Field(
-        0.05, gt=0, description="[m] reconstructed vs planned platform point P along legs"
+        0.05,
+        gt=0,
+        le=10.0,
+        strict=True,
+        description="[m] reconstructed vs planned platform point P along legs",
     )
     max_cable_length_error: float = Field(
-        0.05, gt=0, description="[m] how far straight legs leave the planned cable geometry"
+        0.05,
+        gt=0,
+        le=10.0,
+        strict=True,
+        description="[m] how far straight legs leave the planned cable geometry",
     )
     max_leg_duration: float = Field(
-        30.0, gt=0, description="[s] longest leg; long legs are fine, but keep progress visible"
+        30.0,
+        gt=0,
+        le=3600.0,
+        strict=True,
+        description="[s] longest leg; long legs are fine, but keep progress visible",
     )
-    acceptance_radius: float = Field(0.2, gt=0, description="NAV_WAYPOINT param2 [m]")
-    start_hold: int = Field(
-        5, ge=0, le=3600, description="[s] hold at the start position after takeoff (integer)"
+    autopilot_acceleration: float = Field(
+        1.0,
+        ge=0.05,
+        le=2.5,
+        strict=True,
+        description="[m/s^2] how fast the autopilots change speed between legs (half their "
+        "WPNAV_ACCEL); the statics' force perturbation must cover it on the platform",
     )
     start_time_utc: datetime | None = Field(
-        None, description="optional NAV_DELAY barrier: all drones leave at this UTC time (1 s)"
+        None,
+        description="planned release time: the time base of the MCAP log (default: now), "
+        f"between {EARLIEST_START:%Y-%m-%d} and {LATEST_START:%Y-%m-%d}",
+    )
+    position_error: Literal["rtk", "sitl", "gnss", "exact"] | PositionErrorModel = Field(
+        "rtk",
+        description="how far each drone may be from where it is told: a preset or bounds; "
+        "the obstacle clearance follows from it (missions.position_error)",
+    )
+    vertical_leg_speed: float = Field(
+        0.1, ge=0.01, le=0.5, strict=True, description="[m/s] of lift-off and set-down legs"
     )
     end: Literal["hold", "land"] = Field("hold", description="after the last waypoint")
     altitude_frame: Literal["relative", "amsl"] = "relative"
@@ -58,9 +98,15 @@ class MissionOptions(BaseModel):
     @field_validator("start_time_utc")
     @classmethod
     def _in_utc(cls, value: datetime | None) -> datetime | None:
-        """An instant in UTC. The NAV_DELAY barrier takes its hour from this value and the
-        log its epoch time: a time given with an offset ("16:30+02:00") must become 14:30,
-        and a naive one is UTC (as the name says), not the machine's local time."""
+        """An instant in UTC. The log takes its epoch time from this value: a time given
+        with an offset ("16:30+02:00") must become 14:30, and a naive one is UTC (as the name
+        says), not the machine's local time."""
         if value is None:
             return None
-        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+        value = value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+        if not EARLIEST_START <= value < LATEST_START:
+            raise ValueError(
+                f"must be between {EARLIEST_START:%Y-%m-%d} and {LATEST_START:%Y-%m-%d} "
+                "(UTC): the log stamps messages in nanoseconds since 1970"
+            )
+        return value

@@ -12,25 +12,35 @@ import logging
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
+from flycrane.kinematics import drone_positions_from_configuration
 from flycrane.planning.planners import plan
 from flycrane.planning.result import PlanningProgress
 from flycrane.profiles import path_profile, plot_path_profile
 from missions.annotations import annotate
-from missions.builder import LegSpeeds, build_missions
+from missions.builder import HOLD_SEQ, RELEASE_SEQ, build_missions
+from missions.flight_plan import SetDown, plan_flight
 from missions.formats import dumps, mission_json, qgc_plan, waypoints_text
 from missions.geodesy import geodetic_from_enu
 from missions.mcap_log import LogInputs, write_mcap
+from missions.parameter_file import parameter_file_text
+from missions.position_error import position_error_model
 from missions.task import ResolvedTask, TaskSpec, resolve_task
 from missions.timing_tolerance import timing_tolerance
 from missions.tracks import track_from_path
-from missions.waypoints import reduce_to_waypoints
 
 logger = logging.getLogger(__name__)
+
+#: Most samples the checks of one mission may take (twice its duration over
+#: ``mission.check_resolution``: the timing tolerance flies the plan for up to twice its
+#: length). Each sample holds drone positions and a reconstructed configuration in every
+#: pass, so this bounds a worker's memory whatever the task (2.8 h of mission at 0.1 s).
+MAX_CHECK_SAMPLES = 200_000
 
 Status = Literal["done", "failed", "cancelled"]
 Stage = Literal["planning", "generating"]
@@ -50,6 +60,33 @@ class TaskOutcome:
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+#: The head of every exported ``.parm`` file.
+PARM_HEADER = """FlyCrane: parameters every drone of this mission must have (ArduCopter 4.5).
+Load them before the flight; the upload reads them back and reports any that differ.
+Never load BARO_GND_TEMP on a powered vehicle (SITL's altitude jumped by 27 m)."""
+
+
+def _self_contained(task: TaskSpec, resolved: ResolvedTask) -> dict[str, Any]:
+    """The task with its system, scene, start and goal written out, so that the task's
+    directory alone says what was planned (the flight report reads it)."""
+    problem = resolved.problem
+    return task.model_copy(
+        update={
+            "system": problem.system.spec,
+            "scene": problem.scene,
+            "start": tuple(float(v) for v in resolved.start),
+            "goal": tuple(float(v) for v in resolved.goal),
+        }
+    ).model_dump(mode="json")
+
+
+def _set_down_summary(set_down: SetDown | None) -> dict[str, Any] | None:
+    """A set-down as tracks.json and summary.json give it."""
+    if set_down is None:
+        return None
+    return {**set_down.leg.as_dict(), "start_time": set_down.start, "end_time": set_down.end}
 
 
 def _write(out_dir: Path, name: str, text: str, artifacts: dict[str, str]) -> None:
@@ -82,75 +119,107 @@ def run_task(
         progress=lambda p: report("planning", p),
     )
     result = planned.result
-    base = {
-        "planner_status": result.status.value,
-        "planner_statistics": {
-            **result.statistics.as_dict(),
-            "smoothing_time": planned.smoothing_time,
-        },
-    }
+    statistics = {**result.statistics.as_dict(), "smoothing_time": planned.smoothing_time}
+    base = {"planner_status": result.status.value, "planner_statistics": statistics}
+    # Every outcome carries the planner's status and statistics.
+    outcome_of = partial(
+        TaskOutcome, planner_status=result.status.value, planner_statistics=statistics
+    )
     if not result.status.solved:
         status: Status = "cancelled" if result.status.value == "cancelled" else "failed"
-        outcome = TaskOutcome(status, result.reason or result.status.value, **base)
+        outcome = outcome_of(status, result.reason or result.status.value)
         _write(out, "summary.json", dumps(outcome.as_dict()), {})
         return outcome
     report("generating")
     artifacts: dict[str, str] = {}
     options, system = task.mission, problem.system
+    _write(out, "task.json", dumps(_self_contained(task, resolved)), artifacts)
     _write(
         out,
         "path.json",
         dumps({"configurations": planned.path.tolist(), "raw_path": result.path.tolist()}),
         artifacts,
     )
-    track = track_from_path(system, problem.space, planned.path, options)
-    # The plan keeps the scene's obstacle clearance c. The straight legs may use half of it;
-    # the other half is left for the flight. The timing tolerance is judged on the real
+    dense = track_from_path(system, problem.space, planned.path, options)
+    samples = 2.0 * float(dense.time[-1]) / options.check_resolution
+    if samples > MAX_CHECK_SAMPLES:
+        reason = (
+            f"mission generation: a {dense.time[-1]:.0f} s mission checked every "
+            f"{options.check_resolution:g} s needs {samples:.3g} samples, more than "
+            f"{MAX_CHECK_SAMPLES}; raise mission.check_resolution or the speeds"
+        )
+        outcome = outcome_of("failed", reason, artifacts=artifacts)
+        _write(out, "summary.json", dumps(outcome.as_dict()), {})
+        return outcome
+    # The plan keeps the scene's obstacle clearance c. The legs may use half of it; the
+    # other half is left for the flight. The timing tolerance is judged on the real
     # obstacles, as a flown load is (docs/missions.md, "Clearance").
     clearance = problem.scene.collision.obstacle_clearance
     legs = problem.validity.with_clearance(clearance / 2)
-    waypoints = reduce_to_waypoints(system, track, legs.is_safe, options)
+    set_down = resolved.set_down
+    landing = None
+    if set_down is not None:  # the set-down may touch its surfaces, nothing else
+        landing = problem.validity.with_clearance(0.0).without(set_down.surfaces).is_safe
+    flight = plan_flight(system, dense, legs.is_safe, options, set_down=set_down, landing=landing)
     metrics = planned.metrics.as_dict() if planned.metrics else None
-    if not waypoints.ok:
-        outcome = TaskOutcome(
+    if not flight.ok:
+        outcome = outcome_of(
             "failed",
-            f"mission generation: {waypoints.reason}",
+            f"mission generation: {flight.reason}",
             metrics=metrics,
             artifacts=artifacts,
-            **base,
         )
         _write(out, "summary.json", dumps(outcome.as_dict()), {})
         return outcome
-    annotations = annotate(system, waypoints.time, waypoints.q)
-    missions = build_missions(waypoints, options)
+    track = flight.retimed(dense)
+    annotations = annotate(system, flight.time, flight.q)
+    missions = build_missions(flight, options)
     flown = problem.validity.with_clearance(0.0)
-    tolerance = timing_tolerance(system, track, waypoints, flown.is_safe, options)
-    lat, lon, alt = geodetic_from_enu(waypoints.drones, options.origin)
+    tolerance = timing_tolerance(system, dense, flight, flown.is_safe, options)
+    lat, lon, alt = geodetic_from_enu(flight.drones, options.origin)
     mission_summary = {
-        "waypoints": len(waypoints.time),
-        "duration": float(waypoints.time[-1]),
-        "max_platform_deviation": waypoints.max_platform_deviation,
-        "max_cable_length_error": waypoints.max_cable_length_error,
+        "waypoints": len(flight.time),
+        "duration": flight.duration,
+        "max_platform_deviation": flight.max_platform_deviation,
+        "max_cable_length_error": flight.max_cable_length_error,
+        "max_tracking_deviation": flight.max_tracking_deviation,
         "timing_tolerance": tolerance.as_dict(),
-        "slow_legs": LegSpeeds.of(waypoints).slow_legs(),
+        "early_legs": [list(e) for e in flight.early],
         "items_per_drone": [len(m.items) for m in missions],
+        "release": {"hold_seq": HOLD_SEQ, "release_seq": RELEASE_SEQ},
+        "obstacle_clearance": problem.scene.collision.obstacle_clearance,
+        "position_error": position_error_model(options.position_error).model_dump(),
+        "lift_off": resolved.lift_off.as_dict() if resolved.lift_off else None,
+        "set_down": _set_down_summary(flight.set_down),
     }
     tracks = {
-        "time": waypoints.time.tolist(),
-        "configurations": waypoints.q.tolist(),
-        "drones_enu": waypoints.drones.tolist(),
+        "time": flight.time.tolist(),
+        "configurations": flight.q.tolist(),
+        "drones_enu": drone_positions_from_configuration(system, flight.q).tolist(),
+        "drones_stored_enu": flight.drones.tolist(),  # as ArduPilot stores the waypoints
         "drones_wgs84": np.stack([lat, lon, alt], axis=-1).tolist(),
-        "leg_speeds": waypoints.leg_speeds.tolist(),
+        "speed_limits": [[asdict(limit) for limit in row] for row in flight.limits],
         "annotations": annotations.records(),
         "timing_tolerance": tolerance.as_dict(),
         "dense": {"time": track.time.tolist(), "configurations": track.q.tolist()},
+        "motion": flight.motion.as_dict(),
+        "vehicle_motion": flight.vehicles.as_dict(),
+        "lift_off": resolved.lift_off.as_dict() if resolved.lift_off else None,
+        "set_down": _set_down_summary(flight.set_down),
     }
     _write(out, "tracks.json", dumps(tracks), artifacts)
+    parameters = flight.settings.parameters()
     for mission in missions:
         stem = f"drone{mission.drone}"
         _write(out, f"{stem}.waypoints", waypoints_text(mission), artifacts)
         _write(out, f"{stem}.plan", dumps(qgc_plan(mission, options.max_drone_speed)), artifacts)
         _write(out, f"{stem}.mission.json", dumps(mission_json(mission)), artifacts)
+        _write(
+            out,
+            f"{stem}.parm",
+            parameter_file_text(parameters, flight.settings.reasons(), PARM_HEADER),
+            artifacts,
+        )
     start = options.start_time_utc or datetime.now(UTC)
     write_mcap(
         out / "mission.mcap",
@@ -179,9 +248,7 @@ def run_task(
         title=f"{task.name or problem.scene.name}: tensions and thrusts",
     )
     artifacts["profile"] = "profile.png"
-    outcome = TaskOutcome(
-        "done", "", metrics=metrics, mission=mission_summary, artifacts=artifacts, **base
-    )
+    outcome = outcome_of("done", "", metrics=metrics, mission=mission_summary, artifacts=artifacts)
     _write(out, "summary.json", dumps(outcome.as_dict()), artifacts)
-    logger.info("task done in %s: %d waypoints", out, len(waypoints.time))
+    logger.info("task done in %s: %d waypoints", out, len(flight.time))
     return outcome

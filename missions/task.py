@@ -10,39 +10,41 @@ from __future__ import annotations
 
 import json
 import tomllib
+import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from flycrane.errors import FieldProblem, InputError
 from flycrane.planning.planners import PlannerOptions
 from flycrane.planning.poses import configuration_from_pose
 from flycrane.planning.problem import PlanningProblem
-from flycrane.scene import Configuration, SceneSpec, load_scene
+from flycrane.quantities import Configuration, Orientation, Point
+from flycrane.scene import Mesh, SceneSpec, list_scenes, load_scene
 from flycrane.system import SystemSpec, problems_from_validation_error, system_preset
 from missions.options import MissionOptions
-
-Vec3 = tuple[float, float, float]
+from missions.position_error import position_error_model
+from missions.vertical_legs import VerticalLeg, clear_end
 
 
 class PlatformPose(BaseModel):
     """A start or goal given as the platform's pose; the alphas of least cost are chosen."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
-    position: Vec3 = Field(description="P [m], world frame")
-    orientation: Vec3 = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
+    position: Point = Field(description="P [m], world frame")
+    orientation: Orientation = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
 
 
 class TaskSpec(BaseModel):
     """Everything needed to plan and export a FlyCrane manipulation."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
-    name: str = Field("", max_length=200)
+    name: str = Field("", max_length=200, description="text without control characters")
     system: str | SystemSpec = Field("benchmark", description="preset name or description")
     scene: str | SceneSpec = Field("rescue", description="preset name or inline scene")
     start: Configuration | PlatformPose | None = Field(None, description="None: the scene's")
@@ -50,15 +52,30 @@ class TaskSpec(BaseModel):
     planner: PlannerOptions = Field(default_factory=PlannerOptions)
     mission: MissionOptions = Field(default_factory=MissionOptions)
 
+    @field_validator("name")
+    @classmethod
+    def _printable(cls, value: str) -> str:
+        """A name titles plots and logs: text, not control characters."""
+        bad = next((c for c in value if unicodedata.category(c) == "Cc"), None)
+        if bad is not None:
+            raise ValueError(f"must not contain control characters (found U+{ord(bad):04X})")
+        return value
+
 
 @dataclass(frozen=True)
 class ResolvedTask:
-    """A task made concrete: the problem and checked start and goal configurations."""
+    """A task made concrete: the problem and the checked configurations to plan between.
+
+    Where the given start or goal lies within the obstacle clearance of a surface, the plan
+    starts or ends at the pose above it, and ``lift_off`` / ``set_down`` is the vertical leg
+    the mission flies between the two (:mod:`missions.vertical_legs`)."""
 
     task: TaskSpec
     problem: PlanningProblem
     start: NDArray[np.float64]
     goal: NDArray[np.float64]
+    lift_off: VerticalLeg | None = None
+    set_down: VerticalLeg | None = None
 
 
 def task_from_dict(data: dict, source: str | None = None) -> TaskSpec:
@@ -80,6 +97,58 @@ def load_task(path: str | Path) -> tuple[TaskSpec, Path]:
     return task_from_dict(data, str(path)), path.parent
 
 
+def served_task_problems(task: TaskSpec) -> list[FieldProblem]:
+    """Why a task may not be run as received over a network (empty: it may).
+
+    Such a task names files on nobody's behalf: its scene is a preset name or inline, and its
+    inline meshes carry their vertices (a mesh file or a scene path would be read from the
+    server's disk, where a name can be a device, a FIFO or someone else's file).
+    """
+    if isinstance(task.scene, str):
+        if task.scene in list_scenes():
+            return []
+        known = ", ".join(list_scenes())
+        return [FieldProblem("scene", f"no scene {task.scene!r} among the presets; known: {known}")]
+    shapes = [("obstacles", i, s) for i, s in enumerate(task.scene.obstacles)]
+    shapes += [("payload.shapes", i, s) for i, s in enumerate(task.scene.payload.shapes)]
+    return [
+        FieldProblem(
+            f"scene.{where}[{index}].file",
+            "mesh files cannot be referenced here; give vertices and faces",
+        )
+        for where, index, shape in shapes
+        if isinstance(shape, Mesh) and shape.file is not None
+    ]
+
+
+def require_served_task(task: TaskSpec) -> None:
+    """Raise :class:`InputError` with :func:`served_task_problems` if there are any."""
+    problems = served_task_problems(task)
+    if problems:
+        raise InputError(problems)
+
+
+def task_specs(
+    task: TaskSpec, base_dir: Path | None = None
+) -> tuple[SystemSpec, SceneSpec, Path | None]:
+    """The task's system and scene with presets loaded, and the directory its scene's mesh
+    files are relative to.
+
+    Raises
+    ------
+    InputError
+        Unknown system or scene preset (field ``system`` or ``scene``).
+    """
+    system = system_preset(task.system) if isinstance(task.system, str) else task.system
+    if not isinstance(task.scene, str):
+        return system, task.scene, base_dir
+    try:
+        scene, scene_dir = load_scene(task.scene)
+    except InputError as error:
+        raise InputError([FieldProblem("scene", p.reason) for p in error.problems]) from None
+    return system, scene, scene_dir
+
+
 def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
     """Build the problem and check start and goal (every error names its field).
 
@@ -90,24 +159,40 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
     InvalidConfigurationError
         Start or goal infeasible, out of bounds or in collision (``what`` says which).
     """
-    system = system_preset(task.system) if isinstance(task.system, str) else task.system
-    if isinstance(task.scene, str):
+    system, scene, scene_dir = task_specs(task, base_dir)
+    # The plan keeps the clearance the position-error model asks for (or the scene's, if
+    # larger): docs/missions.md "Clearance".
+    clearance = max(
+        scene.collision.obstacle_clearance,
+        position_error_model(task.mission.position_error).obstacle_clearance,
+    )
+    if clearance != scene.collision.obstacle_clearance:
         try:
-            scene, scene_dir = load_scene(task.scene)
-        except InputError as error:
-            raise InputError([FieldProblem("scene", p.reason) for p in error.problems]) from None
-    else:
-        scene, scene_dir = task.scene, base_dir
+            scene = scene.model_copy(
+                update={
+                    "collision": scene.collision.model_copy(
+                        update={"obstacle_clearance": clearance}
+                    )
+                }
+            )
+            scene = SceneSpec.model_validate(scene.model_dump())
+        except ValidationError as error:
+            raise InputError(
+                [FieldProblem("mission.position_error", p.reason)
+                 for p in problems_from_validation_error(error)]
+            ) from None  # fmt: skip
     problem = PlanningProblem.from_scene(scene, system, scene_dir)
-    ends = []
+    ends, legs = [], []
     ends_given = (("start", task.start, scene.start), ("goal", task.goal, scene.goal))
     for what, given, default in ends_given:
         if isinstance(given, PlatformPose):
+            real = problem.validity.with_clearance(0.0)
             q = configuration_from_pose(
-                problem.space, problem.validity, given.position, given.orientation, what
+                problem.space, real, given.position, given.orientation, what
             )
         else:
             q = np.array(default if given is None else given, dtype=float)
-            problem.validity.require_valid(q, what)
-        ends.append(q)
-    return ResolvedTask(task, problem, ends[0], ends[1])
+        planned, leg = clear_end(q, problem.validity, what)
+        ends.append(planned)
+        legs.append(leg)
+    return ResolvedTask(task, problem, ends[0], ends[1], lift_off=legs[0], set_down=legs[1])

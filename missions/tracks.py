@@ -46,6 +46,14 @@ class Track:
         return k, np.divide(t - self.time[k], span, out=np.zeros_like(t), where=span > 0)
 
 
+def samples_at_rate(time: NDArray[np.float64], rate: float) -> NDArray[np.int64]:
+    """Indices of the samples of increasing times (K,) that show a track at ``rate`` Hz:
+    the first sample at or after each multiple of 1 / rate, and the last one."""
+    time = np.asarray(time, dtype=float)
+    ticks = np.arange(0.0, time[-1] - time[0], 1.0 / rate) + time[0]
+    return np.union1d(np.searchsorted(time, ticks), [len(time) - 1])
+
+
 def rotation_angles(rotations: NDArray[np.float64]) -> NDArray[np.float64]:
     """Rotation angle between consecutive orientations (K, 3, 3) -> (K-1,) [rad]."""
     relative = np.einsum("kba,kbc->kac", rotations[:-1], rotations[1:])

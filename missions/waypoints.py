@@ -112,7 +112,7 @@ def reduce_to_waypoints(
     """Fewest waypoints (greedy recursive splitting) whose legs pass every check."""
     last = len(track.time) - 1
     pending = [(0, last)]
-    accepted: dict[int, tuple[int, LegCheck | None]] = {}
+    accepted: dict[int, tuple[int, LegCheck]] = {}
     failure = ""
     while pending:
         i, j = pending.pop()

@@ -1,25 +1,31 @@
-"""The FastAPI application: routers, error handlers, request-size limit, lifespan.
+"""The FastAPI application: routers, error handlers, request limits, lifespan.
 
-``create_app(settings, executor)`` builds one application; its lifespan opens the database,
-starts the job manager (a local process pool unless an executor is given), resumes the
-tasks a previous run left queued or running, and shuts the pool down at exit.
+``create_app(settings, executor)`` builds one application; its lifespan locks the data
+directory, opens the database, starts the job manager (a local process pool unless an
+executor is given), resumes the tasks a previous run left queued or running, deletes
+finished tasks past their retention (at start and hourly), and at exit stops the pool,
+killing running jobs (their rows stay as they were, for the next start to resume).
 """
 
 from __future__ import annotations
 
+import asyncio
 import logging
 from collections.abc import AsyncIterator
 from concurrent.futures import Executor
-from contextlib import asynccontextmanager
+from contextlib import asynccontextmanager, suppress
 
-from fastapi import FastAPI
+from fastapi import Depends, FastAPI
+from fastapi.concurrency import run_in_threadpool
+from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from flycrane.execution import local_executor
-from service.api.routes import health, presets, statics, tasks
-from service.deps import ServiceState
-from service.errors import install_error_handlers
+from service.api.routes import health, presets, statics, tasks, view
+from service.deps import ServiceState, require_reader
+from service.errors import error_responses, install_error_handlers
 from service.jobs import JobManager
+from service.lifecycle import RETENTION_INTERVAL, DataDirLock, purge_expired
 from service.metrics import ServiceMetrics
 from service.settings import Settings, get_settings
 from service.storage import TaskStore, make_engine
@@ -28,9 +34,11 @@ logger = logging.getLogger(__name__)
 
 
 class BodySizeLimit:
-    """Refuse request bodies above ``limit`` bytes with 413, before they are parsed.
+    """Refuse request bodies above ``limit`` bytes with 413.
 
-    Counts the bytes as they arrive, so a missing or lying Content-Length does not help.
+    Counts the bytes as they arrive, so a missing or lying Content-Length (a chunked body)
+    does not help. Once the limit is crossed the 413 is sent at once, the application is
+    told the client left, and whatever it answers is dropped.
     """
 
     def __init__(self, app: ASGIApp, limit: int) -> None:
@@ -44,20 +52,29 @@ class BodySizeLimit:
         if declared is not None and declared.isdigit() and int(declared) > self.limit:
             await self._refuse(send)
             return
-        seen = 0
+        seen, refused, started = 0, False, False
 
         async def counting() -> Message:
-            nonlocal seen
+            nonlocal seen, refused
+            if refused:
+                return {"type": "http.disconnect"}
             message = await receive()
             seen += len(message.get("body", b""))
             if seen > self.limit:
-                raise _TooLarge
+                refused = True
+                if not started:
+                    await self._refuse(send)
+                return {"type": "http.disconnect"}
             return message
 
-        try:
-            await self.app(scope, counting, send)
-        except _TooLarge:
-            await self._refuse(send)
+        async def guarded(message: Message) -> None:
+            nonlocal started
+            if refused:
+                return
+            started = True
+            await send(message)
+
+        await self.app(scope, counting, guarded)
 
     async def _refuse(self, send: Send) -> None:
         body = f'{{"detail": "request body larger than {self.limit} bytes"}}'.encode()
@@ -65,14 +82,23 @@ class BodySizeLimit:
             {
                 "type": "http.response.start",
                 "status": 413,
-                "headers": [(b"content-type", b"application/json")],
+                "headers": [(b"content-type", b"application/json"), (b"connection", b"close")],
             }
         )
         await send({"type": "http.response.body", "body": body})
 
 
-class _TooLarge(Exception):
-    pass
+async def _sweep(state: ServiceState) -> None:
+    """Delete expired tasks every RETENTION_INTERVAL seconds (the first sweep ran at start)."""
+    while True:
+        await asyncio.sleep(RETENTION_INTERVAL)
+        try:
+            settings = state.settings
+            await run_in_threadpool(
+                purge_expired, state.store, settings.tasks_dir, settings.retention_days
+            )
+        except Exception:  # a busy database: try again next time
+            logger.exception("retention sweep failed")
 
 
 def create_app(settings: Settings | None = None, executor: Executor | None = None) -> FastAPI:
@@ -81,22 +107,37 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        lock = DataDirLock(settings.data_dir).acquire()
         settings.tasks_dir.mkdir(parents=True, exist_ok=True)
         url = settings.resolved_database_url
-        store = TaskStore(make_engine(url))
+        store = TaskStore(make_engine(url, settings.database_busy_timeout))
         metrics = ServiceMetrics(store)
-        pool = executor or local_executor(settings.workers)
-        jobs = JobManager(store, pool, url, settings.tasks_dir, settings.max_queued_tasks, metrics)
-        app.state.service = ServiceState(settings, store, jobs, metrics)
+        factory = None if executor else (lambda: local_executor(settings.workers))
+        jobs = JobManager(
+            store,
+            executor or local_executor(settings.workers),
+            url,
+            settings.tasks_dir,
+            settings.max_queued_tasks,
+            metrics,
+            executor_factory=factory,
+        )
+        state = ServiceState(settings, store, jobs, metrics)
+        app.state.service = state
+        purge_expired(store, settings.tasks_dir, settings.retention_days)
         resumed = jobs.resume_unfinished()
         if resumed:
             logger.info("resumed %d unfinished tasks", len(resumed))
+        sweeper = asyncio.create_task(_sweep(state))
         try:
             yield
         finally:
-            if executor is None:  # ours: stop it; a caller's executor is the caller's
-                pool.shutdown(wait=False, cancel_futures=True)
+            sweeper.cancel()
+            with suppress(asyncio.CancelledError):
+                await sweeper
+            jobs.stop()
             store.engine.dispose()
+            lock.release()
 
     app = FastAPI(
         title="FlyCrane mission service",
@@ -104,9 +145,17 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         description="Plans 6-D manipulation with a three-drone aerial crane (T-RRT over "
         "cable statics) and exports synchronized MAVLink missions, MCAP logs and plots.",
         lifespan=lifespan,
+        responses=error_responses(400),
     )
     install_error_handlers(app)
     for module in (tasks, statics, presets, health):
         app.include_router(module.router)
+    app.include_router(
+        view.router,
+        dependencies=[Depends(require_reader)],
+        responses=error_responses(401, 404, 409, 503),
+    )
     app.add_middleware(BodySizeLimit, limit=settings.max_request_bytes)
+    # Outermost: a request for another host name is refused before anything else runs.
+    app.add_middleware(TrustedHostMiddleware, allowed_hosts=list(settings.allowed_hosts))
     return app

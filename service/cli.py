@@ -1,21 +1,67 @@
-"""``flycrane serve``: run the HTTP service with uvicorn."""
+"""``flycrane serve``: run the HTTP service with uvicorn.
+
+It listens on 127.0.0.1 unless told otherwise, and refuses another address without
+``FLYCRANE_API_TOKEN`` unless ``--allow-unauthenticated`` says that this is meant (for
+example behind a reverse proxy that authenticates; README "Security").
+"""
 
 from __future__ import annotations
 
 import argparse
+import ipaddress
+import sys
+
+from pydantic import ValidationError
+
+
+def _loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from service.app import create_app
+    from service.errors import DataDirLockedError
+    from service.lifecycle import DataDirLock
     from service.settings import Settings
 
     overrides = {
         k: v for k, v in (("data_dir", args.data_dir), ("workers", args.workers)) if v is not None
     }
-    settings = Settings(**overrides)
-    uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level="info")
+    try:
+        settings = Settings(**overrides)
+    except ValidationError as error:
+        for problem in error.errors():
+            field = ".".join(str(p) for p in problem["loc"])
+            print(f"flycrane serve: FLYCRANE_{field.upper()}: {problem['msg']}", file=sys.stderr)
+        return 2
+    if settings.api_token is None and not _loopback(args.host) and not args.allow_unauthenticated:
+        print(
+            f"flycrane serve: refusing to listen on {args.host} without FLYCRANE_API_TOKEN "
+            "(anyone who reaches it could plan and upload missions); set a token, or pass "
+            "--allow-unauthenticated if a proxy in front authenticates",
+            file=sys.stderr,
+        )
+        return 2
+    try:  # the lifespan takes it again; this only turns a second server into a clear message
+        DataDirLock(settings.data_dir).acquire().release()
+    except DataDirLockedError as error:
+        print(f"flycrane serve: {error}", file=sys.stderr)
+        return 1
+    uvicorn.run(
+        create_app(settings),
+        host=args.host,
+        port=args.port,
+        log_level="info",
+        proxy_headers=args.proxy_headers,
+        forwarded_allow_ips=args.forwarded_allow_ips,
+    )
     return 0
 
 
@@ -26,4 +72,19 @@ def register(commands: argparse._SubParsersAction) -> None:
     command.add_argument("--port", type=int, default=8000)
     command.add_argument("--data-dir", help="database and artifacts (FLYCRANE_DATA_DIR)")
     command.add_argument("--workers", type=int, help="planning processes (FLYCRANE_WORKERS)")
+    command.add_argument(
+        "--allow-unauthenticated",
+        action="store_true",
+        help="listen on a non-loopback address without FLYCRANE_API_TOKEN",
+    )
+    command.add_argument(
+        "--proxy-headers",
+        action="store_true",
+        help="trust X-Forwarded-Proto/For from --forwarded-allow-ips (behind a reverse proxy)",
+    )
+    command.add_argument(
+        "--forwarded-allow-ips",
+        default="127.0.0.1",
+        help="proxies whose X-Forwarded-* headers are trusted (default 127.0.0.1)",
+    )
     command.set_defaults(handler=_cmd_serve)

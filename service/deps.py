@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from fastapi import Depends, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from pydantic import SecretStr
 
 from service.errors import UnauthorizedError
 from service.jobs import JobManager
@@ -32,17 +33,47 @@ def get_state(request: Request) -> ServiceState:
 _bearer = HTTPBearer(auto_error=False)
 
 
+def _matches(credentials: HTTPAuthorizationCredentials | None, *tokens: SecretStr) -> bool:
+    given = (credentials.credentials if credentials else "").encode()
+    # Every token is compared (in constant time each): no early exit says which one is set.
+    matched = [hmac.compare_digest(given, t.get_secret_value().encode()) for t in tokens]
+    return any(matched)
+
+
+def _refuse(what: str) -> UnauthorizedError:
+    return UnauthorizedError(
+        f"a valid bearer token is required to {what}", headers={"WWW-Authenticate": "Bearer"}
+    )
+
+
 def require_token(
     state: ServiceState = Depends(get_state),
     credentials: HTTPAuthorizationCredentials | None = Depends(_bearer),
 ) -> None:
-    """Mutating endpoints need ``Authorization: Bearer <token>`` when a token is set."""
-    expected = state.settings.api_token
-    if expected is None:
+    """Changing anything needs ``Authorization: Bearer <api_token>`` when a token is set."""
+    token = state.settings.api_token
+    if token is not None and not _matches(credentials, token):
+        raise _refuse("change tasks")
+
+
+def require_reader(
+    state: ServiceState = Depends(get_state),
+    credentials: HTTPAuthorizationCredentials | None = Depends(_bearer),
+) -> None:
+    """Reading tasks needs the api_token or the read_token when a token is set (unless
+    ``public_reads``): missions carry positions and the logs a whole flight plan."""
+    settings = state.settings
+    if not settings.reads_need_token or settings.api_token is None:
         return
-    given = credentials.credentials if credentials else ""
-    if not hmac.compare_digest(given.encode(), expected.encode()):
-        raise UnauthorizedError(
-            "a valid bearer token is required for this endpoint",
-            headers={"WWW-Authenticate": "Bearer"},
-        )
+    tokens = [t for t in (settings.api_token, settings.read_token) if t is not None]
+    if not _matches(credentials, *tokens):
+        raise _refuse("read tasks")
+
+
+def base_url(request: Request, state: ServiceState = Depends(get_state)) -> str:
+    """Where URLs in responses start: ``public_url`` behind a proxy, else the request's own
+    base (its Host is one of ``allowed_hosts``, checked before any route runs)."""
+    configured = state.settings.public_url
+    if configured is not None:
+        return str(configured).rstrip("/") + "/"
+    return str(request.base_url)

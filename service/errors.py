@@ -6,12 +6,18 @@ Every refusal names the field or the object and the reason, in FastAPI's own err
 
 from __future__ import annotations
 
+from typing import Any
+
 from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
+from pydantic import BaseModel
+from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 
-from flycrane.errors import FlyCraneError, InputError
+from flycrane.errors import FlyCraneError, InputError, readable_errors
+from flycrane.planning.validity import InvalidConfigurationError
 
 
 class ServiceError(FlyCraneError):
@@ -54,6 +60,52 @@ class UnauthorizedError(ServiceError):
     status_code = 401
 
 
+class ArtifactUnreadableError(ServiceError):
+    """A task's artifact exists but cannot be used (corrupt or truncated on disk)."""
+
+    status_code = 409
+
+
+class DataDirLockedError(ServiceError):
+    """Another server process holds the data directory (two would run each other's tasks)."""
+
+    status_code = 503
+
+
+#: Retry-After for a busy or unreachable database [s].
+DATABASE_RETRY_AFTER = 5
+
+
+class ErrorBody(BaseModel):
+    """Every error but 422: ``{"detail": "what was wrong"}``."""
+
+    detail: str
+
+
+_DESCRIPTIONS = {
+    400: "Host header not among the allowed hosts (text), or a body that is not UTF-8 (JSON)",
+    401: "a bearer token is required (FLYCRANE_API_TOKEN / FLYCRANE_READ_TOKEN)",
+    403: "not allowed (a vehicle address outside the upload allow-list)",
+    404: "no such task or artifact",
+    409: "the task is not in a state that allows this, or its files are unusable",
+    413: "request body larger than FLYCRANE_MAX_REQUEST_BYTES",
+    503: "busy: queue full, database locked or no worker pool; see Retry-After",
+}
+
+
+def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI entries for the error statuses a route can answer with."""
+    # JSON whatever the route's own media type (an HTML page's 404 is JSON too).
+    json_body = {"application/json": {"schema": ErrorBody.model_json_schema()}}
+    responses: dict[int | str, dict[str, Any]] = {}
+    for code in codes:
+        content = dict(json_body)
+        if code == 400:  # starlette's TrustedHostMiddleware answers in plain text
+            content["text/plain"] = {"schema": {"type": "string"}}
+        responses[code] = {"description": _DESCRIPTIONS[code], "content": content}
+    return responses
+
+
 def input_error_body(error: InputError) -> dict:
     """FastAPI's 422 body for field problems found after schema validation."""
     return {
@@ -62,45 +114,6 @@ def input_error_body(error: InputError) -> dict:
             for p in error.problems
         ]
     }
-
-
-#: Error types of a union branch the input plainly did not mean (a dict given where the
-#: other branch wanted a string or a list, or the other way round).
-_WRONG_BRANCH = {
-    dict: {"string_type", "list_type", "tuple_type"},
-    list: {"model_type", "dict_type", "model_attributes_type", "string_type"},
-}
-
-
-def _readable_location(loc: tuple) -> list:
-    """Drop pydantic's union-branch and validator tags from an error location."""
-    return [
-        part
-        for part in loc
-        if isinstance(part, int)
-        or not (
-            part in ("str", "int", "float")
-            or "[" in part
-            or part.startswith("function-")
-            or part[:1].isupper()
-            or part in ("octahedral", "generic", "box", "cylinder", "sphere", "mesh")
-        )
-    ]
-
-
-def clean_validation_errors(errors: list[dict]) -> list[dict]:
-    """Schema errors with readable locations and without wrong-branch noise."""
-    cleaned, seen = [], set()
-    for error in errors:
-        kind = next((k for k in _WRONG_BRANCH if isinstance(error.get("input"), k)), None)
-        if kind is not None and error["type"] in _WRONG_BRANCH[kind]:
-            continue
-        loc = _readable_location(tuple(error["loc"]))
-        key = (tuple(loc), error["msg"])
-        if key not in seen:
-            seen.add(key)
-            cleaned.append({"loc": loc, "msg": error["msg"], "type": error["type"]})
-    return cleaned or [{"loc": list(e["loc"]), "msg": e["msg"], "type": e["type"]} for e in errors]
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -114,9 +127,32 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _schema_error(_request: Request, error: RequestValidationError) -> JSONResponse:
-        body = {"detail": clean_validation_errors(jsonable_encoder(error.errors()))}
+        body = {"detail": readable_errors(jsonable_encoder(error.errors()))}
         return JSONResponse(body, status_code=422)
 
     @app.exception_handler(InputError)
     async def _input_error(_request: Request, error: InputError) -> JSONResponse:
         return JSONResponse(input_error_body(error), status_code=422)
+
+    @app.exception_handler(InvalidConfigurationError)
+    async def _invalid_configuration(
+        _request: Request, error: InvalidConfigurationError
+    ) -> JSONResponse:
+        detail = {"loc": ["body", error.what], "msg": str(error.reason), "type": "value_error"}
+        return JSONResponse({"detail": [detail]}, status_code=422)
+
+    @app.exception_handler(OperationalError)
+    @app.exception_handler(PoolTimeoutError)
+    async def _database_busy(_request: Request, error: Exception) -> JSONResponse:
+        # SQLite's "database is locked" after the busy timeout, a PostgreSQL server gone:
+        # the request was fine, the database could not take it now.
+        return JSONResponse(
+            {"detail": f"the database is busy or unreachable; retry later ({_first_line(error)})"},
+            status_code=503,
+            headers={"Retry-After": str(DATABASE_RETRY_AFTER)},
+        )
+
+
+def _first_line(error: Exception) -> str:
+    text = str(getattr(error, "orig", None) or error)
+    return text.splitlines()[0] if text else type(error).__name__

@@ -16,12 +16,15 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
-from concurrent.futures import Executor, Future
+from collections.abc import Callable, Iterator
+from concurrent.futures import BrokenExecutor, Executor, Future
+from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
+from flycrane.execution import stop_executor
 from service.errors import ServiceBusyError
 from service.metrics import ServiceMetrics
 from service.storage import TaskRecord, TaskStatus, TaskStore, make_engine
@@ -51,30 +54,33 @@ def run_job(spec: JobSpec) -> str:
     """
     from flycrane.planning.result import PlanningProgress
     from missions.pipeline import run_task
-    from missions.task import TaskSpec
+    from missions.task import TaskSpec, require_served_task
 
     store = TaskStore(make_engine(spec.database_url))
     record = store.get(spec.task_id)
     if record is None or record.status.finished or record.attempt != spec.attempt:
         return record.status.value if record else TaskStatus.FAILED.value
-    stopped = {"flag": record.cancel_requested, "checked": time.monotonic()}
-    written = {"at": 0.0, "stage": ""}
+    stop_flag = record.cancel_requested
+    checked = time.monotonic()
+    written_at, written_stage = 0.0, ""
 
     def should_stop() -> bool:
+        nonlocal stop_flag, checked
         now = time.monotonic()
-        if not stopped["flag"] and now - stopped["checked"] >= POLL_INTERVAL:
+        if not stop_flag and now - checked >= POLL_INTERVAL:
             current = store.get(spec.task_id)
-            stopped["flag"] = bool(
+            stop_flag = bool(
                 current is None or current.cancel_requested or current.attempt != spec.attempt
             )
-            stopped["checked"] = now
-        return stopped["flag"]
+            checked = now
+        return stop_flag
 
     def progress(stage: str, report: PlanningProgress | None) -> None:
+        nonlocal written_at, written_stage
         now = time.monotonic()
-        if stage == written["stage"] and now - written["at"] < PROGRESS_INTERVAL:
+        if stage == written_stage and now - written_at < PROGRESS_INTERVAL:
             return
-        data = {"stage": stage}
+        data: dict[str, Any] = {"stage": stage}
         if report is not None:
             data.update(
                 iterations=report.expansion_attempts,
@@ -83,30 +89,41 @@ def run_job(spec: JobSpec) -> str:
                 elapsed=report.elapsed,
             )
         store.update(spec.task_id, spec.attempt, status=TaskStatus(stage), progress=data)
-        written.update(at=now, stage=stage)
+        written_at, written_stage = now, stage
 
     if should_stop():
-        store.update(
-            spec.task_id, spec.attempt, status=TaskStatus.CANCELLED, error="cancelled before start"
+        store.finish(
+            spec.task_id, spec.attempt, TaskStatus.CANCELLED, None, "cancelled before start"
         )
         return TaskStatus.CANCELLED.value
     try:
-        outcome = run_task(
-            TaskSpec.model_validate(spec.request),
-            spec.task_dir,
-            progress=progress,
-            should_stop=should_stop,
-        )
+        task = TaskSpec.model_validate(spec.request)
+        require_served_task(task)  # rows written by an older version are checked again
+        outcome = run_task(task, spec.task_dir, progress=progress, should_stop=should_stop)
         status, result, error = TaskStatus(outcome.status), outcome.as_dict(), outcome.reason
     except Exception as failure:
         logger.exception("task %s failed", spec.task_id)
         status, result, error = TaskStatus.FAILED, None, f"{type(failure).__name__}: {failure}"
-    store.update(spec.task_id, spec.attempt, status=status, result=result, error=error or None)
-    return status.value
+    final = store.finish(spec.task_id, spec.attempt, status, result, error or None)
+    return final.status.value if final else status.value
+
+
+#: Why a task failed when the process running it died (SIGKILL, the OOM killer, a crash).
+WORKER_DIED = (
+    "the worker process running this task died (killed, e.g. out of memory); the task is "
+    "not retried, since it may be what killed it"
+)
 
 
 class JobManager:
-    """Submits tasks to an executor, at most ``capacity`` in flight."""
+    """Submits tasks to an executor, at most ``capacity`` in flight.
+
+    A local process pool breaks for good when one of its workers dies: every job in it
+    fails with ``BrokenProcessPool`` and it accepts no more. The manager then starts a new
+    pool (``executor_factory``), fails the task that was running with :data:`WORKER_DIED`
+    and queues the others again on the new pool. Without a factory (an executor the caller
+    owns) the tasks fail with the reason and :attr:`healthy` turns false.
+    """
 
     def __init__(
         self,
@@ -117,30 +134,70 @@ class JobManager:
         capacity: int,
         metrics: ServiceMetrics,
         job: Callable[[JobSpec], str] = run_job,
+        executor_factory: Callable[[], Executor] | None = None,
     ) -> None:
         self.store, self.executor, self.database_url = store, executor, database_url
         self.tasks_dir, self.capacity, self.metrics, self.job = tasks_dir, capacity, metrics, job
-        self._futures: dict[str, Future] = {}
-        self._lock = threading.Lock()
+        self.executor_factory = executor_factory
+        self.replaced_pools = 0
+        self._futures: dict[str, tuple[Future, Executor]] = {}  #: task id -> its job
+        self._broken: Executor | None = None
+        self._stopping = False
+        self._reserved = 0  #: slots taken by tasks being stored (slot())
+        self._lock = threading.RLock()
 
     @property
     def in_flight(self) -> int:
         with self._lock:
             return len(self._futures)
 
+    @property
+    def healthy(self) -> bool:
+        """Whether new tasks can run (false once a pool broke and could not be replaced)."""
+        with self._lock:
+            return self._broken is None and not self._stopping
+
     def task_dir(self, task_id: str) -> Path:
         return self.tasks_dir / task_id
 
-    def reserve(self) -> None:
-        """Raise :class:`ServiceBusyError` if no slot is free (before storing a task)."""
-        if self.in_flight >= self.capacity:
-            raise ServiceBusyError(
-                f"{self.capacity} tasks are queued or running; retry later",
-                headers={"Retry-After": "10"},
-            )
+    @contextmanager
+    def slot(self) -> Iterator[None]:
+        """Hold one of the ``capacity`` slots while a new task is stored and submitted.
+
+        Requests run in parallel threads: the slot is counted from here on, so that two of
+        them cannot both take the last one.
+
+        Raises
+        ------
+        ServiceBusyError
+            If no slot is free, or no pool can run tasks.
+        """
+        with self._lock:
+            if not self.healthy:
+                raise ServiceBusyError(
+                    "no worker pool can run tasks (see /healthz); retry later",
+                    headers={"Retry-After": "30"},
+                )
+            if len(self._futures) + self._reserved >= self.capacity:
+                raise ServiceBusyError(
+                    f"{self.capacity} tasks are queued or running; retry later",
+                    headers={"Retry-After": "10"},
+                )
+            self._reserved += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._reserved -= 1
 
     def submit(self, record: TaskRecord) -> None:
-        """Queue a stored task (its row already says queued)."""
+        """Queue a stored task (its row already says queued).
+
+        Raises
+        ------
+        ServiceBusyError
+            If no pool takes it (the row is then marked failed with the reason).
+        """
         spec = JobSpec(
             record.id,
             record.attempt,
@@ -148,16 +205,32 @@ class JobManager:
             self.database_url,
             str(self.task_dir(record.id)),
         )
-        future = self.executor.submit(self.job, spec)
         with self._lock:
-            self._futures[record.id] = future
-        future.add_done_callback(lambda done, task_id=record.id: self._finished(task_id, done))
+            future, executor = None, self.executor
+            for _ in range(2):  # a pool found broken here is replaced once
+                executor = self.executor
+                try:
+                    future = executor.submit(self.job, spec)
+                    break
+                except (BrokenExecutor, RuntimeError):  # broken, or shut down
+                    if not self._replace(executor):
+                        break
+            if future is None:
+                self.store.update(
+                    record.id, status=TaskStatus.FAILED, error="no worker pool could take it"
+                )
+                raise ServiceBusyError(
+                    "no worker pool can run tasks (see /healthz); retry later",
+                    headers={"Retry-After": "30"},
+                )
+            self._futures[record.id] = (future, executor)
+        future.add_done_callback(partial(self._finished, record.id, executor))
 
     def cancel(self, task_id: str) -> TaskRecord | None:
         """Ask a task to stop: a queued one is dropped, a running one stops at its next poll."""
         record = self.store.update(task_id, cancel_requested=True)
         with self._lock:
-            future = self._futures.get(task_id)
+            future, _ = self._futures.get(task_id, (None, None))
         if future is not None and future.cancel():
             record = self.store.update(
                 task_id, status=TaskStatus.CANCELLED, error="cancelled while queued"
@@ -167,13 +240,15 @@ class JobManager:
     def resume_unfinished(self) -> list[str]:
         """After a restart: queue again every task that was queued or running."""
         resumed = []
-        for record in self.store.unfinished():
+        for found in self.store.unfinished():
             record = self.store.update(
-                record.id,
+                found.id,
                 status=TaskStatus.QUEUED,
-                attempt=record.attempt + 1,
+                attempt=found.attempt + 1,
                 progress={"stage": "queued", "resumed": True},
             )
+            if record is None:
+                continue
             if record.cancel_requested:
                 self.store.update(
                     record.id, status=TaskStatus.CANCELLED, error="cancelled before a restart"
@@ -183,13 +258,41 @@ class JobManager:
             resumed.append(record.id)
         return resumed
 
-    def _finished(self, task_id: str, future: Future) -> None:
+    def stop(self) -> None:
+        """Stop at server shutdown: running jobs are killed and keep their rows as they are
+        (queued or running), so that the next start resumes them."""
         with self._lock:
-            self._futures.pop(task_id, None)
-        if future.cancelled():
+            self._stopping = True
+            executor = self.executor
+        if self.executor_factory is not None:  # ours: stop it; a caller's is the caller's
+            stop_executor(executor)
+
+    def _replace(self, broken: Executor) -> bool:
+        """Start a new pool in place of ``broken`` (once per broken pool); False if none."""
+        with self._lock:
+            if self.executor is not broken:
+                return True  # another thread replaced it already
+            if self._stopping or self.executor_factory is None:
+                self._broken = broken
+                return False
+            logger.error("worker pool broken (a worker died); starting a new one")
+            stop_executor(broken)
+            self.executor = self.executor_factory()
+            self._broken = None
+            self.replaced_pools += 1
+            return True
+
+    def _finished(self, task_id: str, executor: Executor, future: Future) -> None:
+        with self._lock:
+            if self._futures.get(task_id, (None,))[0] is future:
+                del self._futures[task_id]
+            stopping = self._stopping
+        if future.cancelled() or stopping:
             return
         failure = future.exception()
-        if failure is not None:  # the worker died or could not even start the job
+        if isinstance(failure, BrokenExecutor):
+            self._worker_died(task_id, executor)
+        elif failure is not None:  # the job could not even start (e.g. unpicklable)
             self.store.update(
                 task_id,
                 status=TaskStatus.FAILED,
@@ -200,3 +303,25 @@ class JobManager:
             seconds = record.result.get("planner_statistics", {}).get("time")
             if seconds is not None:
                 self.metrics.planning_seconds.observe(seconds)
+
+    def _worker_died(self, task_id: str, broken: Executor) -> None:
+        """A job of the broken pool ``broken``: the one that was running fails with the
+        reason, one that never started is queued again on a new pool."""
+        replaced = self._replace(broken)
+        record = self.store.get(task_id)
+        if record is None or record.status.finished:
+            return
+        if record.status is not TaskStatus.QUEUED:
+            self.store.update(task_id, status=TaskStatus.FAILED, error=WORKER_DIED)
+            return
+        if not replaced:
+            self.store.update(
+                task_id, status=TaskStatus.FAILED, error="the worker pool broke (a worker died)"
+            )
+            return
+        again = self.store.update(task_id, attempt=record.attempt + 1)
+        if again is not None:
+            try:
+                self.submit(again)
+            except ServiceBusyError:
+                logger.error("task %s could not be queued again", task_id)

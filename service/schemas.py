@@ -6,15 +6,14 @@ The task body itself is :class:`missions.task.TaskSpec`, shared with ``flycrane 
 from __future__ import annotations
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from flycrane.cost import CostForm
+from flycrane.quantities import Configuration
 from flycrane.system import SystemSpec
 from service.storage import TaskRecord, TaskStatus
-
-Configuration = tuple[float, float, float, float, float, float, float, float, float]
 
 
 class TaskAccepted(BaseModel):
@@ -42,6 +41,7 @@ class TaskPublic(BaseModel):
 
     @classmethod
     def of(cls, record: TaskRecord, base_url: str) -> TaskPublic:
+        """``base_url`` ends with a slash (deps.base_url)."""
         url = f"{base_url}v1/tasks/{record.id}"
         files = (record.result or {}).get("artifacts", {})
         artifacts = {name: f"{url}/artifacts/{name}" for name in files.values()}
@@ -72,11 +72,14 @@ class TaskPage(BaseModel):
 class StaticsCreate(BaseModel):
     """A what-if: the statics of configurations of a system."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     system: str | SystemSpec = "benchmark"
     q: list[Configuration] = Field(min_length=1, max_length=1000)
     cost_form: CostForm = CostForm.NORMALIZED
+
+
+Address = Annotated[str, Field(min_length=1, max_length=200)]
 
 
 class UploadCreate(BaseModel):
@@ -84,16 +87,28 @@ class UploadCreate(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    vehicles: tuple[str, str, str] = Field(
-        description='e.g. "udpout:127.0.0.1:14550" or "/dev/ttyACM0:57600"'
+    vehicles: tuple[Address, Address, Address] = Field(
+        description='e.g. "udpout:127.0.0.1:14550" or "/dev/ttyACM0:57600"; three different '
+        "vehicles, each allowed by FLYCRANE_UPLOAD_NETWORKS or FLYCRANE_UPLOAD_DEVICES"
     )
 
 
+class ParameterDifference(BaseModel):
+    """A vehicle parameter that is not what the drone's ``.parm`` says the plan assumes."""
+
+    name: str
+    expected: float
+    found: float | None = Field(description="null: the vehicle does not answer for it")
+
+
 class VehicleUpload(BaseModel):
+    """One vehicle's outcome: its own error, never another vehicle's."""
+
     drone: int
     vehicle: str
-    ok: bool
+    ok: bool = Field(description="mission uploaded and verified, parameters as planned")
     detail: str
+    parameter_differences: list[ParameterDifference] = []
 
 
 class UploadPublic(BaseModel):
@@ -102,6 +117,8 @@ class UploadPublic(BaseModel):
 
 
 class Health(BaseModel):
-    status: Literal["ok"]
+    status: Literal["ok", "unavailable"]
+    problems: list[str] = Field(default_factory=list, description="why not ok")
     tasks_in_flight: int
     workers: int
+    replaced_pools: int = Field(description="worker pools replaced after a worker died")

@@ -2,21 +2,35 @@
 
 Nothing reads the environment at import time: the application gets its Settings from
 :func:`get_settings` (a cached dependency that tests override) or from ``create_app``.
+
+Secure defaults (README "Security"): ``flycrane serve`` listens on 127.0.0.1 only and
+answers only requests addressed to a loopback name (a DNS-rebinding page cannot reach it),
+with a token every task endpoint asks for it, vehicles are loopback or USB serial devices
+unless widened here, and finished tasks are deleted after ``retention_days``.
 """
 
 from __future__ import annotations
 
 from functools import lru_cache
+from ipaddress import IPv4Network, IPv6Network
 from pathlib import Path
 
-from pydantic import Field, field_validator
+from pydantic import AnyHttpUrl, Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-#: Vehicle addresses allowed for upload by default: loopback and serial devices only.
-DEFAULT_UPLOAD_ALLOW = (
-    r"^(udp|udpin|udpout|tcp|tcpin):(127\.\d+\.\d+\.\d+|localhost|\[?::1\]?):\d+$",
-    r"^(serial:)?/dev/tty[A-Za-z0-9_]+(:\d+)?$",
+#: Networks vehicles may be reached on by default: this machine only.
+DEFAULT_UPLOAD_NETWORKS = (IPv4Network("127.0.0.0/8"),)
+#: Serial devices vehicles may be on by default: USB adapters and flight controllers (by
+#: kernel name or by stable id). Consoles (/dev/tty0, /dev/ttyS0, ...) are not among them.
+DEFAULT_UPLOAD_DEVICES = (
+    r"/dev/ttyUSB[0-9]+",
+    r"/dev/ttyACM[0-9]+",
+    r"/dev/serial/by-id/[A-Za-z0-9_.+-]+",
 )
+#: Host names a request may be addressed to by default: loopback only.
+DEFAULT_ALLOWED_HOSTS = ("127.0.0.1", "localhost", "::1")
+#: Shortest token accepted: a guess over HTTP must be hopeless.
+MIN_TOKEN_LENGTH = 16
 
 
 class Settings(BaseSettings):
@@ -28,25 +42,75 @@ class Settings(BaseSettings):
     database_url: str | None = Field(
         None, description="SQLAlchemy URL; default sqlite:///<data_dir>/flycrane.db"
     )
+    database_busy_timeout: float = Field(
+        5.0,
+        gt=0,
+        le=60,
+        description="how long a request waits for a locked database before 503 [s]",
+    )
     workers: int = Field(1, ge=1, le=256, description="planning worker processes")
     max_queued_tasks: int = Field(
         32, ge=1, description="tasks queued or running at once; more are refused with 503"
     )
     max_request_bytes: int = Field(1_000_000, ge=1024, description="largest request body")
     max_time_budget: float = Field(600.0, gt=0, description="largest planner time budget [s]")
-    api_token: str | None = Field(
-        None, description="bearer token required by mutating endpoints; None: no auth"
+    api_token: SecretStr | None = Field(
+        None,
+        description="bearer token for every task endpoint (reads too, unless read_token or "
+        "public_reads); unset: no authentication (loopback use only)",
     )
-    upload_allow: tuple[str, ...] = Field(
-        DEFAULT_UPLOAD_ALLOW,
-        description="regular expressions; a vehicle address must match one to be uploaded to",
+    read_token: SecretStr | None = Field(
+        None, description="a second token that may only read tasks (needs api_token)"
+    )
+    public_reads: bool = Field(
+        False, description="with api_token set, let anyone read tasks and their artifacts"
+    )
+    allowed_hosts: tuple[str, ...] = Field(
+        DEFAULT_ALLOWED_HOSTS,
+        description="Host header values accepted ('*.example.org' patterns; '*': any); "
+        "others get 400",
+    )
+    public_url: AnyHttpUrl | None = Field(
+        None,
+        description="base of the URLs in responses (behind a reverse proxy); default: the "
+        "request's own (an allowed host)",
+    )
+    retention_days: float | None = Field(
+        30.0,
+        gt=0,
+        le=36_500,
+        description="finished tasks older than this are deleted with their files; None: kept",
+    )
+    upload_networks: tuple[IPv4Network | IPv6Network, ...] = Field(
+        DEFAULT_UPLOAD_NETWORKS,
+        description="networks a vehicle's IP address must be in (addresses only: names are "
+        "never resolved)",
+    )
+    upload_devices: tuple[str, ...] = Field(
+        DEFAULT_UPLOAD_DEVICES,
+        description="regular expressions a vehicle's serial device path must match whole",
     )
     upload_timeout: float = Field(60.0, gt=0, description="overall upload deadline [s]")
 
-    @field_validator("api_token")
+    @field_validator("api_token", "read_token")
     @classmethod
-    def _non_empty_token(cls, value: str | None) -> str | None:
-        return value or None
+    def _strong_token(cls, value: SecretStr | None) -> SecretStr | None:
+        """An empty token must not quietly mean "no authentication"."""
+        if value is None:
+            return None
+        token = value.get_secret_value()
+        if token.strip() != token or len(token) < MIN_TOKEN_LENGTH:
+            raise ValueError(
+                f"must be at least {MIN_TOKEN_LENGTH} characters without surrounding "
+                "whitespace (unset the variable to run without authentication)"
+            )
+        return value
+
+    @model_validator(mode="after")
+    def _read_token_needs_api_token(self) -> Settings:
+        if self.read_token is not None and self.api_token is None:
+            raise ValueError("read_token needs api_token: otherwise anyone could write")
+        return self
 
     @property
     def resolved_database_url(self) -> str:
@@ -55,6 +119,10 @@ class Settings(BaseSettings):
     @property
     def tasks_dir(self) -> Path:
         return self.data_dir / "tasks"
+
+    @property
+    def reads_need_token(self) -> bool:
+        return self.api_token is not None and not self.public_reads
 
 
 @lru_cache

@@ -7,12 +7,15 @@ committed transaction, so a restart finds every task where it was. Artifacts are
 
 from __future__ import annotations
 
+import builtins
 import enum
+import shutil
 import uuid
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import (
@@ -23,13 +26,20 @@ from sqlalchemy import (
     Integer,
     String,
     Text,
+    case,
     create_engine,
+    delete,
     event,
     func,
     select,
+    update,
 )
-from sqlalchemy.engine import Engine
+from sqlalchemy.engine import Dialect, Engine
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
+from sqlalchemy.types import TypeDecorator
+
+#: Largest listing offset: far beyond any number of tasks, well inside SQLite's integers.
+MAX_OFFSET = 1_000_000_000
 
 
 class TaskStatus(enum.StrEnum):
@@ -51,6 +61,26 @@ def _now() -> datetime:
     return datetime.now(UTC)
 
 
+class UtcDateTime(TypeDecorator[datetime]):
+    """Timestamps stored in UTC and read back timezone-aware: SQLite keeps no zone, and a
+    naive time in the API would be read as the client's local time."""
+
+    impl = DateTime(timezone=True)
+    cache_ok = True
+
+    def process_bind_param(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        if value.tzinfo is None:
+            raise ValueError("naive datetime: give a timezone")
+        return value.astimezone(UTC)
+
+    def process_result_value(self, value: datetime | None, dialect: Dialect) -> datetime | None:
+        if value is None:
+            return None
+        return value.replace(tzinfo=UTC) if value.tzinfo is None else value.astimezone(UTC)
+
+
 class _Base(DeclarativeBase):
     pass
 
@@ -60,8 +90,8 @@ class TaskRow(_Base):
 
     id: Mapped[str] = mapped_column(String(32), primary_key=True)
     status: Mapped[str] = mapped_column(String(16), index=True)
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=_now)
-    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime, default=_now)
+    updated_at: Mapped[datetime] = mapped_column(UtcDateTime, default=_now)
     request: Mapped[dict] = mapped_column(JSON)
     progress: Mapped[dict | None] = mapped_column(JSON, nullable=True)
     result: Mapped[dict | None] = mapped_column(JSON, nullable=True)
@@ -77,7 +107,7 @@ class UploadRow(_Base):
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
     task_id: Mapped[str] = mapped_column(ForeignKey("tasks.id"), index=True)
-    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=_now)
+    created_at: Mapped[datetime] = mapped_column(UtcDateTime, default=_now)
     outcome: Mapped[dict] = mapped_column(JSON)
 
 
@@ -112,10 +142,13 @@ class TaskRecord:
         )
 
 
-def make_engine(url: str) -> Engine:
-    """An engine for ``url``; SQLite gets WAL so readers do not block the writer."""
+def make_engine(url: str, busy_timeout: float = 30.0) -> Engine:
+    """An engine for ``url``; SQLite gets WAL so readers do not block the writer, and waits
+    at most ``busy_timeout`` [s] for a lock before the statement fails (the API answers 503)."""
     if url.startswith("sqlite"):
-        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 30})
+        engine = create_engine(
+            url, connect_args={"check_same_thread": False, "timeout": busy_timeout}
+        )
 
         @event.listens_for(engine, "connect")
         def _pragmas(connection, _record) -> None:  # pragma: no cover - driver callback
@@ -125,7 +158,7 @@ def make_engine(url: str) -> Engine:
             cursor.close()
 
         return engine
-    return create_engine(url, pool_pre_ping=True)
+    return create_engine(url, pool_pre_ping=True, pool_timeout=busy_timeout)
 
 
 class TaskStore:
@@ -194,7 +227,60 @@ class TaskStore:
             row.updated_at = _now()
             return TaskRecord.of(row)
 
-    def unfinished(self) -> list[TaskRecord]:
+    def finish(
+        self,
+        task_id: str,
+        attempt: int,
+        status: TaskStatus,
+        result: dict[str, Any] | None,
+        error: str | None,
+    ) -> TaskRecord | None:
+        """A job's last write: its outcome, unless the task moved on (another attempt, or
+        already finished); a cancel asked for meanwhile wins over ``done``.
+
+        One UPDATE statement, so a cancel cannot slip in between reading the flag and
+        writing the status (a DELETE answered "cancel requested" must end ``cancelled``).
+        """
+        cancelled = (
+            "cancelled while generating the missions"
+            if status is TaskStatus.DONE
+            else error or "cancelled"
+        )
+        active = [s.value for s in TaskStatus if not s.finished]
+        statement = (
+            update(TaskRow)
+            .where(TaskRow.id == task_id, TaskRow.attempt == attempt)
+            .where(TaskRow.status.in_(active))
+            .values(
+                status=case(
+                    (TaskRow.cancel_requested, TaskStatus.CANCELLED.value), else_=status.value
+                ),
+                error=case((TaskRow.cancel_requested, cancelled), else_=error),
+                result=result,
+                updated_at=_now(),
+            )
+        )
+        with self._session() as session:
+            session.execute(statement)
+        return self.get(task_id)
+
+    def purge(self, finished_before: datetime, tasks_dir: Path) -> builtins.list[str]:
+        """Delete finished tasks last changed before ``finished_before``, with their uploads
+        and artifact directories; returns their ids."""
+        finished = [s.value for s in TaskStatus if s.finished]
+        query = select(TaskRow.id).where(
+            TaskRow.status.in_(finished), TaskRow.updated_at < finished_before
+        )
+        with self._session() as session:
+            ids = list(session.scalars(query).all())
+            if ids:
+                session.execute(delete(UploadRow).where(UploadRow.task_id.in_(ids)))
+                session.execute(delete(TaskRow).where(TaskRow.id.in_(ids)))
+        for task_id in ids:
+            shutil.rmtree(tasks_dir / task_id, ignore_errors=True)
+        return ids
+
+    def unfinished(self) -> builtins.list[TaskRecord]:
         """Tasks queued or running, oldest first (what a restart must resume)."""
         active = [s.value for s in TaskStatus if not s.finished]
         query = select(TaskRow).where(TaskRow.status.in_(active)).order_by(TaskRow.created_at)
@@ -211,7 +297,7 @@ class TaskStore:
         with self._session() as session:
             session.add(UploadRow(task_id=task_id, outcome=outcome))
 
-    def uploads(self, task_id: str) -> list[dict[str, Any]]:
+    def uploads(self, task_id: str) -> builtins.list[dict[str, Any]]:
         query = select(UploadRow).where(UploadRow.task_id == task_id).order_by(UploadRow.id)
         with self._session() as session:
             return [

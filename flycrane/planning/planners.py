@@ -22,6 +22,7 @@ from flycrane.planning.result import PlannerResult, PlanningProgress, Terminatio
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.trrt import TRRT, TRRTConfig, Validity
+from flycrane.quantities import MAX_LENGTH, Seed
 
 Algorithm = Literal["trrt", "rrt", "ompl-trrt", "ompl-rrt"]
 #: Planners that minimize the cost (their shortcuts must not add mechanical work).
@@ -31,13 +32,17 @@ COST_AWARE: frozenset[str] = frozenset({"trrt", "ompl-trrt"})
 class PlannerOptions(BaseModel):
     """Which planner, with which parameters (defaults: the paper's T-RRT)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    # Finite numbers only; seeds and counts are integers, not booleans or strings.
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     algorithm: Algorithm = "trrt"
-    seed: int = Field(0, ge=0, description="random seed: same seed, same path")
+    seed: Seed = Field(0, description="random seed: same seed, same path")
     time_budget: float = Field(60.0, gt=0, le=86_400, description="planning time limit [s]")
     step: float | None = Field(
-        None, gt=0, description="extension step delta [state-space distance]; None: 0.1 x extent"
+        None,
+        gt=0,
+        le=MAX_LENGTH,
+        description="extension step delta [state-space distance]; None: 0.1 x extent",
     )
     goal_bias: float = Field(0.05, ge=0, le=1)
     goal_connection: float = Field(
@@ -47,7 +52,9 @@ class PlannerOptions(BaseModel):
     temperature_rate: float = Field(0.1, ge=0, le=1, description="T_rate")
     refinement_ratio: float = Field(0.1, ge=0, le=1, description="rho")
     cost_threshold: float | None = Field(None, gt=0, description="c_max; None: no threshold")
-    smoothing_attempts: int = Field(100, ge=0, le=100_000, description="random shortcuts")
+    smoothing_attempts: int = Field(
+        100, ge=0, le=100_000, strict=True, description="random shortcuts"
+    )
 
     def trrt_config(self) -> TRRTConfig:
         config = TRRTConfig(
@@ -69,8 +76,10 @@ class PlannerOptions(BaseModel):
 def make_planner(space: ConfigurationSpace, validity: Validity, options: PlannerOptions):
     """The planner object for ``options.algorithm`` (each has ``solve`` and ``name``)."""
     config = options.trrt_config()
-    if options.algorithm.startswith("ompl-"):
-        return OmplPlanner(space, validity, options.algorithm.removeprefix("ompl-"), config)
+    if options.algorithm == "ompl-rrt":
+        return OmplPlanner(space, validity, "rrt", config)
+    if options.algorithm == "ompl-trrt":
+        return OmplPlanner(space, validity, "trrt", config)
     return TRRT(space, validity, config, name=options.algorithm)
 
 

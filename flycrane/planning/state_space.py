@@ -40,6 +40,11 @@ from flycrane.planning.interpolation import (
 EMBEDDING_SIZE = 3 + 9 + 6
 
 
+def _floats(values: tuple[float, float, float]) -> tuple[float, float, float]:
+    x, y, z = values
+    return float(x), float(y), float(z)
+
+
 @dataclass(frozen=True)
 class ConfigurationSpace:
     """Bounds, metric and sampling of the FlyCrane's configurations."""
@@ -58,8 +63,8 @@ class ConfigurationSpace:
     def for_system(
         cls,
         system: CableSystem,
-        position_low: ArrayLike,
-        position_high: ArrayLike,
+        position_low: tuple[float, float, float],
+        position_high: tuple[float, float, float],
         max_tilt: float,
         alpha_low: float,
         alpha_high: float,
@@ -69,8 +74,8 @@ class ConfigurationSpace:
         """Bounds as given; metric weights from the system's lever arms (module docstring)."""
         drones = drone_positions_in_platform_frame(system, np.ones((1, 3)))[0]
         return cls(
-            position_low=tuple(float(v) for v in position_low),
-            position_high=tuple(float(v) for v in position_high),
+            position_low=_floats(position_low),
+            position_high=_floats(position_high),
             max_tilt=float(max_tilt),
             alpha_low=float(alpha_low),
             alpha_high=float(alpha_high),

@@ -48,7 +48,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -127,7 +127,7 @@ class TRRTConfig:
             raise InputError(problems, "planner options")
 
     @classmethod
-    def rrt(cls, **overrides: float | None) -> TRRTConfig:
+    def rrt(cls, **overrides: Any) -> TRRTConfig:
         """Plain RRT: no transition test, no refinement control."""
         return cls(transition_test=False, refinement_control=False, **overrides)
 
@@ -185,9 +185,11 @@ class TRRT:
         self.space = space
         self.validity = validity
         config = config or TRRTConfig()
-        if config.step is None:
-            config = replace(config, step=STEP_FRACTION * space.maximum_extent)
-        self.config = config
+        #: delta, filled in from the space when the config leaves it open
+        self.step: float = (
+            STEP_FRACTION * space.maximum_extent if config.step is None else config.step
+        )
+        self.config = replace(config, step=self.step)
         self.name = name or ("trrt" if self.config.transition_test else "rrt")
 
     def solve(
@@ -202,7 +204,7 @@ class TRRT:
         clock = time.perf_counter()
         start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
         rng = np.random.default_rng(seed)
-        cfg = self.config
+        cfg, step = self.config, self.step
         counts = {"X": 0, "refinement": 0, "invalid": 0, "transition": 0}
 
         def finish(status: PlannerStatus, path=None, reason="", tree=None, temp=None):
@@ -249,7 +251,7 @@ class TRRT:
             ):
                 counts["transition"] += 1
                 return None
-            return tree.add(q_new, near, c_new, refinement=distance < cfg.step)
+            return tree.add(q_new, near, c_new, refinement=distance < step)
 
         while (stop := termination()) is None:
             counts["X"] += 1
@@ -259,14 +261,14 @@ class TRRT:
                 cfg.refinement_control
                 and q_rand is not goal  # goal-biased samples aim at the goal, not at refining
                 and not refinement_allowed(
-                    distance, cfg.step, tree.refinement_nodes, tree.size, cfg.refinement_ratio
+                    distance, step, tree.refinement_nodes, tree.size, cfg.refinement_ratio
                 )
             ):
                 counts["refinement"] += 1
                 continue
-            if distance > cfg.step:
-                q_new = self.space.interpolate(tree.q[near], q_rand, [cfg.step / distance])[0]
-                distance = cfg.step
+            if distance > step:
+                q_new = self.space.interpolate(tree.q[near], q_rand, [step / distance])[0]
+                distance = step
             else:
                 q_new = q_rand
             c_new = float(c_goal) if q_new is goal else float(self.validity.cost(q_new[None])[0])
@@ -279,7 +281,7 @@ class TRRT:
                 )
             to_goal = float(np.linalg.norm(tree.embedding[added] - goal_embedding))
             best_to_goal = min(best_to_goal, to_goal)
-            if to_goal <= cfg.goal_connection * cfg.step:  # goal-connection attempt
+            if to_goal <= cfg.goal_connection * step:  # goal-connection attempt
                 reached = try_extend(added, goal, float(c_goal), to_goal)
                 if reached is not None:
                     return finish(

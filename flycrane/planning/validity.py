@@ -20,6 +20,7 @@ their own (pickling rebuilds it).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -101,6 +102,16 @@ class ValidityChecker:
         collision = self.scene.collision.model_copy(update={"obstacle_clearance": clearance})
         scene = self.scene.model_copy(update={"collision": collision})
         return ValidityChecker(self.system, scene, self.space, self.base_dir, self.resolution)
+
+    def without(self, names: Iterable[str]) -> ValidityChecker:
+        """The same checker without the named obstacles (``"ground"``: the ground), e.g.
+        the surfaces a set-down is meant to touch."""
+        names = tuple(names)
+        if not names:
+            return self
+        return ValidityChecker(
+            self.system, self.scene.without(names), self.space, self.base_dir, self.resolution
+        )
 
     def _states(self, q: ArrayLike, use_bounds: bool) -> tuple[NDArray, NDArray]:
         q = np.ascontiguousarray(as_configurations(q))

@@ -13,7 +13,9 @@ Ground side (one module per protocol concept):
 - :mod:`.errors` - typed errors carrying vehicle and MAVLink result codes
 
 Vehicle side (tests, and ``flycrane mock-autopilot``): :mod:`.mock_autopilot`,
-:mod:`.mock_mission` (mission protocol), :mod:`.mock_flight` (kinematics, simulated time),
+:mod:`.mock_mission` (mission protocol), :mod:`.mock_params` (parameters),
+:mod:`.mock_flight` (the mission flown in simulated time: :mod:`.mock_spline` ArduCopter's
+spline legs, :mod:`.mock_straight` the mock's own straight ones), :mod:`.mock_config`,
 :mod:`.faults` (lossy links).
 """
 
@@ -32,8 +34,9 @@ from missions.mavlink.errors import (
 from missions.mavlink.faults import FaultInjection
 from missions.mavlink.fleet import Fleet, upload_to_vehicles
 from missions.mavlink.mock_autopilot import MockAutopilot, MockConfig
-from missions.mavlink.mock_flight import Dynamics, Geodetic, Imperfections, SimClock
+from missions.mavlink.mock_config import Dynamics, Geodetic, Imperfections
 from missions.mavlink.policy import RetryPolicy
+from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.telemetry import TelemetryRecorder, VehicleTelemetry
 from missions.mavlink.transport import VehicleLink
 from missions.mavlink.upload import UploadReport, Verification, upload_and_verify

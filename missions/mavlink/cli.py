@@ -19,7 +19,8 @@ from typing import Any
 from flycrane.errors import FieldProblem, InputError
 from missions.mavlink.faults import FaultInjection
 from missions.mavlink.mock_autopilot import SITL_HOME, MockAutopilot, MockConfig
-from missions.mavlink.mock_flight import Geodetic, Imperfections, SimClock
+from missions.mavlink.mock_config import Geodetic, Imperfections
+from missions.mavlink.sim_clock import SimClock
 
 
 def register(subparsers: Any) -> None:

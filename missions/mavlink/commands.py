@@ -28,10 +28,12 @@ from missions.mavlink.errors import (
     MavlinkTimeoutError,
 )
 from missions.mavlink.messages import (
+    MessageSpec,
     command_long,
     command_result_name,
     dialect,
     message_interval_params,
+    mission_set_current,
     request_data_stream,
 )
 from missions.mavlink.policy import RetryPolicy
@@ -144,6 +146,16 @@ class StartReport:
     resent: tuple[str, ...]
 
 
+def _send_back_to_back(links: Sequence[VehicleLink], specs: Sequence[MessageSpec]) -> list[float]:
+    """Send each vehicle its message, all built beforehand so that the sends are
+    microseconds apart; the ground's monotonic time of each send [s]."""
+    sent = []
+    for link, spec in zip(links, specs, strict=True):
+        link.send(spec)
+        sent.append(time.monotonic())
+    return sent
+
+
 def start_missions(links: Sequence[VehicleLink], policy: RetryPolicy) -> StartReport:
     """Send MAV_CMD_MISSION_START to every vehicle at once (module docstring).
 
@@ -156,11 +168,7 @@ def start_missions(links: Sequence[VehicleLink], policy: RetryPolicy) -> StartRe
     command = int(MavCmd.MISSION_START)
     inboxes = [link.subscribe(("COMMAND_ACK",)) for link in links]
     try:
-        specs = [command_long(command, link.target) for link in links]
-        sent_at = []
-        for link, spec in zip(links, specs, strict=True):
-            link.send(spec)
-            sent_at.append(time.monotonic())
+        sent_at = _send_back_to_back(links, [command_long(command, link.target) for link in links])
         pending = dict(enumerate(links))
         failures: dict[str, MavlinkError] = {}
         resent: set[str] = set()
@@ -190,3 +198,77 @@ def start_missions(links: Sequence[VehicleLink], policy: RetryPolicy) -> StartRe
     if failures:
         raise FleetError("start", failures, tuple(n for n in names if n not in failures))
     return StartReport(names, sent_at[-1] - sent_at[0], tuple(sorted(resent)))
+
+
+def set_message_interval(
+    link: VehicleLink, name: str, interval_s: float, policy: RetryPolicy
+) -> None:
+    """Ask for message ``name`` every ``interval_s`` [s of vehicle time] (acknowledged)."""
+    send_command(
+        link,
+        dialect.MAV_CMD_SET_MESSAGE_INTERVAL,
+        message_interval_params(name, interval_s),
+        policy,
+    )
+
+
+@dataclass(frozen=True)
+class ReleaseReport:
+    """How one synchronized release went out: MISSION_SET_CURRENT to every vehicle.
+
+    ``sent_s`` is the ground's monotonic time of each first send [s], ``confirmed_s`` of
+    the MISSION_CURRENT confirming the new item, per vehicle in link order.
+    """
+
+    vehicles: tuple[str, ...]
+    seq: int
+    sent_s: tuple[float, ...]
+    confirmed_s: tuple[float, ...]
+
+    @property
+    def spread_s(self) -> float:
+        """Between the first and the last send [s of ground time]."""
+        return max(self.sent_s) - min(self.sent_s)
+
+
+def release(links: Sequence[VehicleLink], seq: int, policy: RetryPolicy) -> ReleaseReport:
+    """Release every vehicle at once from a hold into item ``seq`` (design.md section 9).
+
+    MISSION_SET_CURRENT has no acknowledgement of its own: the vehicle confirms it with a
+    MISSION_CURRENT naming ``seq``. The messages are built first and then sent back to
+    back (microseconds apart); a vehicle that did not confirm within a request timeout is
+    *not* sent it again: a late second release would start it a timeout after the others,
+    which is what this procedure exists to prevent.
+
+    Raises
+    ------
+    FleetError
+        Naming every vehicle that did not confirm (the others were released: the caller
+        must stop them).
+    """
+    inboxes = [link.subscribe(("MISSION_CURRENT",)) for link in links]
+    try:
+        sent = _send_back_to_back(links, [mission_set_current(seq, link.target) for link in links])
+        until = time.monotonic() + policy.request_timeout_s
+        confirmed: list[float | None] = []
+        for inbox in inboxes:
+            at = None
+            while at is None and (left := until - time.monotonic()) > 0:
+                msg = inbox.get(left)
+                if msg is not None and msg.seq == seq:
+                    at = time.monotonic()
+            confirmed.append(at)
+    finally:
+        for inbox in inboxes:
+            inbox.close()
+    names = tuple(link.name for link in links)
+    missing = {
+        link.name: MavlinkTimeoutError(
+            link.name, f"MISSION_CURRENT {seq} after MISSION_SET_CURRENT", policy.request_timeout_s
+        )
+        for link, at in zip(links, confirmed, strict=True)
+        if at is None
+    }
+    if missing:
+        raise FleetError("release", missing, tuple(n for n in names if n not in missing))
+    return ReleaseReport(names, seq, tuple(sent), tuple(c for c in confirmed if c is not None))

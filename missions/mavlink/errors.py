@@ -158,3 +158,27 @@ class FleetError(MavlinkError):
             f"{operation} failed on {len(self.failures)} of "
             f"{len(self.failures) + len(succeeded)} vehicles: {details}"
         )
+
+
+class ParameterError(MavlinkError):
+    """A vehicle parameter is not what the mission assumes.
+
+    Attributes
+    ----------
+    vehicle : str
+        The vehicle's name.
+    name : str
+        The parameter, e.g. ``"WPNAV_JERK"``.
+    expected : float
+        The value the mission's ``.parm`` file asks for.
+    found : float | None
+        The vehicle's value (None if it never answered for this parameter).
+    """
+
+    def __init__(self, vehicle: str, name: str, expected: float, found: float | None) -> None:
+        self.vehicle = vehicle
+        self.name = name
+        self.expected = expected
+        self.found = found
+        has = "does not answer for it" if found is None else f"has {found:g}"
+        super().__init__(f"{vehicle}: parameter {name} should be {expected:g}, the vehicle {has}")

@@ -7,7 +7,9 @@ This is the entry point for the mission builder and the service::
         with fleet.recorder() as recorder:
             fleet.request_position_streams(rate_hz=10)
             fleet.arm()
-            fleet.start()                 # one common MISSION_START
+            fleet.start()                 # one common MISSION_START: take off to the hold
+            ...                           # every vehicle holding (MISSION_CURRENT hold_seq)
+            fleet.release(release_seq)    # all leave the hold at once
             ...
             telemetry = recorder.snapshot()
 
@@ -20,13 +22,21 @@ it worked.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 from missions.items import DroneMission
-from missions.mavlink.commands import StartReport, arm, request_position_stream, start_missions
+from missions.mavlink.commands import (
+    ReleaseReport,
+    StartReport,
+    arm,
+    release,
+    request_position_stream,
+    start_missions,
+)
 from missions.mavlink.errors import FleetError, MavlinkError
+from missions.mavlink.params import ParameterCheck, set_parameters
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.telemetry import TelemetryRecorder
 from missions.mavlink.transport import VehicleLink
@@ -117,16 +127,36 @@ class Fleet:
         self,
         missions: Sequence[DroneMission],
         verification: Verification = Verification.ARDUPILOT,
+        parameters: Sequence[Mapping[str, float]] | None = None,
     ) -> tuple[UploadReport, ...]:
-        """Upload ``missions[i]`` to vehicle ``i``, concurrently, each verified."""
+        """Upload ``missions[i]`` to vehicle ``i``, concurrently, each verified; with
+        ``parameters[i]`` (mission i's ``.parm``) read back and compared
+        (:attr:`UploadReport.parameter_errors`)."""
         if len(missions) != len(self.links):
             raise ValueError(f"{len(missions)} missions for {len(self.links)} vehicles")
-        by_link = dict(zip(self.links, missions, strict=True))
+        expected = list(parameters) if parameters is not None else [{}] * len(missions)
+        if len(expected) != len(self.links):
+            raise ValueError(f"{len(expected)} parameter sets for {len(self.links)} vehicles")
+        index = {link: i for i, link in enumerate(self.links)}
+
+        def upload(link: VehicleLink) -> UploadReport:
+            i = index[link]
+            return upload_and_verify(link, missions[i], self.policy, verification, expected[i])
+
+        return on_every_vehicle(self.links, "upload", upload)
+
+    def set_parameters(
+        self, values: Sequence[Mapping[str, float]]
+    ) -> tuple[tuple[ParameterCheck, ...], ...]:
+        """Set ``values[i]`` (e.g. a mission's ``.parm``) on vehicle ``i``, each confirmed
+        by its read-back (:func:`~missions.mavlink.params.set_parameters`)."""
+        if len(values) != len(self.links):
+            raise ValueError(f"{len(values)} parameter sets for {len(self.links)} vehicles")
+        index = {link: i for i, link in enumerate(self.links)}
         return on_every_vehicle(
-            self.links,
-            "upload",
-            lambda link: upload_and_verify(link, by_link[link], self.policy, verification),
-        )
+            self.links, "parameters",
+            lambda link: set_parameters(link, values[index[link]], self.policy),
+        )  # fmt: skip
 
     def request_position_streams(self, rate_hz: float) -> None:
         """GLOBAL_POSITION_INT at ``rate_hz`` [Hz] from every vehicle (confirmed arriving)."""
@@ -141,6 +171,11 @@ class Fleet:
         """One common MISSION_START to every vehicle (:func:`start_missions`)."""
         return start_missions(self.links, self.policy)
 
+    def release(self, seq: int) -> ReleaseReport:
+        """Release every vehicle at once from its hold into item ``seq`` (:func:`release`:
+        MISSION_SET_CURRENT sent back to back, never re-sent)."""
+        return release(self.links, seq, self.policy)
+
     def recorder(self) -> TelemetryRecorder:
         """A telemetry recorder on these links (start it, or use ``with``)."""
         return TelemetryRecorder(self.links)
@@ -151,7 +186,9 @@ def upload_to_vehicles(
     missions: Sequence[DroneMission],
     policy: RetryPolicy | None = None,
     verification: Verification = Verification.ARDUPILOT,
+    parameters: Sequence[Mapping[str, float]] | None = None,
 ) -> tuple[UploadReport, ...]:
-    """Connect, upload ``missions[i]`` to ``addresses[i]`` with verification, disconnect."""
+    """Connect, upload ``missions[i]`` to ``addresses[i]`` with verification and the
+    parameter check (:meth:`Fleet.upload`), disconnect."""
     with Fleet.connect(addresses, policy) as fleet:
-        return fleet.upload(missions, verification)
+        return fleet.upload(missions, verification, parameters)

@@ -183,8 +183,23 @@ COMPARED_FIELDS = ("command", "frame", "autocontinue", "mission_type", "x", "y",
                    "param1", "param2", "param3", "param4", "z")  # fmt: skip
 #: Commands whose location AP_Mission stores (altitude in whole centimetres).
 _STORED_LOCATION = frozenset(
-    {MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_UNLIM, MavCmd.NAV_LAND, MavCmd.NAV_TAKEOFF}
+    {
+        MavCmd.NAV_WAYPOINT,
+        MavCmd.NAV_SPLINE_WAYPOINT,
+        MavCmd.NAV_LOITER_UNLIM,
+        MavCmd.NAV_LAND,
+        MavCmd.NAV_TAKEOFF,
+    }
 )
+
+
+def ardupilot_frame(item: MissionItem) -> MissionItem:
+    """``item`` with the frame ArduCopter reads it back in: a command without a location
+    (DO_CHANGE_SPEED) sent in frame MISSION comes back in frame GLOBAL (0) (seen on
+    ArduCopter 4.5.7 SITL: AP_Mission keeps no frame for it)."""
+    if int(item.command) in _STORED_LOCATION or item.frame != MavFrame.MISSION:
+        return item
+    return replace(item, frame=MavFrame.GLOBAL)
 
 
 def ardupilot_readback(item: MissionItem) -> MissionItem:
@@ -193,11 +208,12 @@ def ardupilot_readback(item: MissionItem) -> MissionItem:
     A location's altitude is stored as ``z * 100.0f`` truncated to whole centimetres and
     returned as ``alt * 0.01f``; a NAV_WAYPOINT keeps only its hold time (param1, a uint16
     of whole seconds) and returns 0 for param2-4 (Copter stores no acceptance radius, pass
-    radius or yaw). Everything else comes back as sent.
+    radius or yaw). A command without a location comes back in frame GLOBAL
+    (:func:`ardupilot_frame`). Everything else comes back as sent.
     """
     sent = as_sent(item)
     if int(item.command) not in _STORED_LOCATION:
-        return sent
+        return ardupilot_frame(sent)
     centimetres = np.trunc(np.float32(item.z) * np.float32(100.0))
     stored = replace(sent, z=float(np.float32(centimetres) * np.float32(0.01)))
     if int(item.command) == MavCmd.NAV_WAYPOINT:
@@ -352,5 +368,41 @@ def global_position_int(
             "vy": vy,
             "vz": vz,
             "hdg": heading_cdeg,
+        },
+    )
+
+
+def param_set(name: str, value: float, target: Endpoint) -> MessageSpec:
+    """PARAM_SET of ``name`` (at most 16 characters) to ``value`` as a float32 (ArduPilot
+    stores every parameter type and converts; it answers with PARAM_VALUE)."""
+    return (
+        "PARAM_SET",
+        {
+            **_target(target),
+            "param_id": name.encode("ascii"),
+            "param_value": float(value),
+            "param_type": dialect.MAV_PARAM_TYPE_REAL32,
+        },
+    )
+
+
+def param_request_read(name: str, target: Endpoint) -> MessageSpec:
+    """PARAM_REQUEST_READ of ``name`` by name (param_index -1)."""
+    return (
+        "PARAM_REQUEST_READ",
+        {**_target(target), "param_id": name.encode("ascii"), "param_index": -1},
+    )
+
+
+def param_value(name: str, value: float, param_type: int, count: int, index: int) -> MessageSpec:
+    """PARAM_VALUE: what a vehicle answers to PARAM_SET and PARAM_REQUEST_READ."""
+    return (
+        "PARAM_VALUE",
+        {
+            "param_id": name.encode("ascii"),
+            "param_value": float(value),
+            "param_type": param_type,
+            "param_count": count,
+            "param_index": index,
         },
     )

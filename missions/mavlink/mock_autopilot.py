@@ -1,9 +1,10 @@
 """A mock ArduCopter on one MAVLink connection: protocol, commands, streams, kinematic flight.
 
-One thread per mock runs a loop in simulated time (:class:`~.mock_flight.SimClock`): it
-advances the flight in fixed steps of ``sim_step_s``, sends what is due (HEARTBEAT every
-``heartbeat_interval_s``, requested streams, mission events) and handles what arrives. Every
-period is simulated time, so a mock at speed-up 10 heartbeats at 10 Hz of wall time.
+One thread per mock runs a loop in simulated time (:class:`~.sim_clock.SimClock`): it
+advances the flight one clock step at a time, in lock step with the other mocks on the same
+clock, sends what is due (HEARTBEAT every ``heartbeat_interval_s``, requested streams,
+mission events) and handles what arrives after every step and while it waits for the next.
+Every period is simulated time, so a mock at speed-up 10 heartbeats at 10 Hz of wall time.
 
 Behaviour copied from ArduCopter 4.5 SITL where a ground station can tell the difference
 (design.md section 9; the mission protocol itself is in :mod:`.mock_mission`):
@@ -19,7 +20,13 @@ Behaviour copied from ArduCopter 4.5 SITL where a ground station can tell the di
 - MAV_CMD_MISSION_START: refused (DENIED) while disarmed, FAILED without a mission or when
   the first nav item is not a takeoff while on the ground ("Auto: Missing Takeoff Cmd");
   accepted without effect while the mission runs (ArduCopter's start_or_resume); it starts
-  from the item set by MISSION_SET_CURRENT, else from seq 1.
+  from the item set by MISSION_SET_CURRENT, else from seq 1, with the vehicle's parameters
+  as they are then.
+- MISSION_SET_CURRENT is confirmed by a MISSION_CURRENT naming the item; while the mission
+  runs, the vehicle jumps there at once (:meth:`~.mock_flight.KinematicFlight.jump`), the
+  release of the three drones from their hold (design.md section 9).
+- Parameters: PARAM_SET, PARAM_REQUEST_READ and PARAM_REQUEST_LIST as ArduPilot answers
+  them (:mod:`.mock_params`); the navigation parameters fly the spline legs.
 - Unknown commands: MAV_RESULT_UNSUPPORTED.
 """
 
@@ -28,6 +35,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -48,15 +56,11 @@ from missions.mavlink.messages import (
     mission_item_reached,
     to_mavlink,
 )
-from missions.mavlink.mock_flight import (
-    NAV_COMMANDS,
-    Dynamics,
-    Geodetic,
-    Imperfections,
-    KinematicFlight,
-    SimClock,
-)
+from missions.mavlink.mock_config import Dynamics, Geodetic, Imperfections
+from missions.mavlink.mock_flight import NAV_COMMANDS, KinematicFlight
 from missions.mavlink.mock_mission import MissionServer, home_item
+from missions.mavlink.mock_params import ParameterStore, settings_from_parameters
+from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.transport import open_mavlink
 
 logger = logging.getLogger(__name__)
@@ -89,6 +93,7 @@ _MISSION_PROTOCOL = frozenset(
         "MISSION_ACK",
     }
 )
+_PARAMETER_PROTOCOL = frozenset({"PARAM_SET", "PARAM_REQUEST_READ", "PARAM_REQUEST_LIST"})
 
 
 @dataclass(frozen=True)
@@ -98,7 +103,8 @@ class MockConfig:
     ``boot_no_space_s`` is how long after start MISSION_COUNT gets MAV_MISSION_NO_SPACE and
     arming is refused (ArduCopter booting); ``max_items`` the largest mission accepted;
     ``request_int`` asks for upload items with MISSION_REQUEST_INT (PX4-like) instead of
-    ArduCopter's MISSION_REQUEST.
+    ArduCopter's MISSION_REQUEST; ``parameters`` replace ArduCopter's defaults at boot
+    (:class:`~.mock_params.ParameterStore`, ArduPilot's units).
     """
 
     system_id: int = 1
@@ -106,14 +112,15 @@ class MockConfig:
     home: Geodetic = SITL_HOME
     boot_no_space_s: float = 0.0
     heartbeat_interval_s: float = 1.0
-    sim_step_s: float = 0.02
     max_items: int = 700
     request_int: bool = False
     dynamics: Dynamics = field(default_factory=Dynamics)
     imperfections: Imperfections = field(default_factory=Imperfections)
     faults: FaultInjection = field(default_factory=FaultInjection)
+    parameters: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        ParameterStore(self.parameters)  # raises InputError naming an unknown parameter
         problems = []
         if not 1 <= self.system_id <= 255:
             problems.append(FieldProblem("system_id", f"must be in 1..255, got {self.system_id}"))
@@ -121,9 +128,12 @@ class MockConfig:
             problems.append(
                 FieldProblem("component_id", f"must be in 0..255, got {self.component_id}")
             )
-        for name in ("heartbeat_interval_s", "sim_step_s"):
-            if not getattr(self, name) > 0:
-                problems.append(FieldProblem(name, f"must be > 0, got {getattr(self, name)}"))
+        if not self.heartbeat_interval_s > 0:
+            problems.append(
+                FieldProblem(
+                    "heartbeat_interval_s", f"must be > 0, got {self.heartbeat_interval_s}"
+                )
+            )
         if self.boot_no_space_s < 0:
             problems.append(
                 FieldProblem("boot_no_space_s", f"must be >= 0, got {self.boot_no_space_s}")
@@ -172,15 +182,17 @@ class MockAutopilot:
         self._server = MissionServer(
             self.own, self._home_item, self.config.max_items, self.config.request_int
         )
+        self.parameters = ParameterStore(self.config.parameters)
         self.armed = False
         self._current = 0
         self._start_seq = 1
-        # Simulated time advances in whole steps, counted, so that periodic messages fall
-        # on exact multiples of their interval instead of drifting with float sums.
-        self._start_time = self.clock.now()
-        self._steps = 0
-        self._time = self._start_time
-        self._boot_until = self._start_time + self.config.boot_no_space_s
+        # Simulated time advances in whole clock steps, counted, so that periodic messages
+        # fall on exact multiples of their interval instead of drifting with float sums.
+        self._vehicle = -1  # our id on the clock, once started
+        self._steps = 0  # the last step done (clock steps since its epoch)
+        self._first_step = 1  # heartbeats are counted from here
+        self._time = self.clock.now()
+        self._boot_until = self._time + self.config.boot_no_space_s
         self._intervals: dict[int, int] = {}  # message id -> interval [steps]
         self._phase: dict[int, int] = {}  # message id -> step of the first sample
         self._stop = threading.Event()
@@ -205,17 +217,23 @@ class MockAutopilot:
             return frozenset(dialect.mavlink_map[i].msgname for i in self._intervals)
 
     def _steps_of(self, seconds: float) -> int:
-        return max(1, round(seconds / self.config.sim_step_s))
+        return max(1, round(seconds / self.clock.step_s))
 
     def start(self) -> MockAutopilot:
+        with self._lock:
+            self._vehicle, self._steps = self.clock.join()
+            self._first_step = self._steps + 1
+            self._time = self._steps * self.clock.step_s
+            self._boot_until = self._time + self.config.boot_no_space_s
         self._thread.start()
         return self
 
     def stop(self) -> None:
-        """Stop the loop (joined) and close the connection. Idempotent."""
+        """Stop the loop (joined), leave the clock and close the connection. Idempotent."""
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join(timeout=2.0)
+        self.clock.leave(self._vehicle)
         self._conn.close()
 
     def __enter__(self) -> MockAutopilot:
@@ -227,33 +245,35 @@ class MockAutopilot:
     # --- the loop ---------------------------------------------------------------------
 
     def _run(self) -> None:
-        step = self.config.sim_step_s
-        while not self._stop.is_set():
-            self._catch_up()
-            wait = self.clock.real_seconds(self._time + step - self.clock.now())
-            try:
-                if self._conn.select(min(max(wait, 0.0), 0.02)):
-                    # handle what arrived at the simulated time it arrived, not a step late
-                    self._catch_up()
-                    while (msg := self._conn.recv_msg()) is not None:
-                        self._receive(msg)
-            except (OSError, ValueError) as error:
-                if self._stop.is_set():
-                    break  # closed under us on shutdown
-                logger.warning("mock %d: receive failed: %s", self.own.system, error)
-                self._stop.wait(0.05)
+        try:
+            while not self._stop.is_set():
+                wait = self.clock.may_begin(self._vehicle, self._steps + 1)
+                if wait == 0.0:
+                    self._step()
+                try:
+                    # after every step, and while waiting for the next: what arrived is
+                    # handled at the simulated time of the last step
+                    if self._conn.select(min(wait, 0.02)):
+                        while (msg := self._conn.recv_msg()) is not None:
+                            self._receive(msg)
+                except (OSError, ValueError) as error:
+                    if self._stop.is_set():
+                        break  # closed under us on shutdown
+                    logger.warning("mock %d: receive failed: %s", self.own.system, error)
+                    self._stop.wait(0.05)
+        finally:
+            self.clock.leave(self._vehicle)  # peers must not wait for a dead loop
 
-    def _catch_up(self) -> None:
-        """Advance the simulation in whole steps up to the clock's present."""
-        step = self.config.sim_step_s
+    def _step(self) -> None:
+        """Advance the simulation by one clock step."""
         heartbeat_steps = self._steps_of(self.config.heartbeat_interval_s)
         with self._lock:
-            while self._start_time + (self._steps + 1) * step <= self.clock.now():
-                self._steps += 1
-                self._time = self._start_time + self._steps * step
-                self._advance(step)
-                if (self._steps - 1) % heartbeat_steps == 0:
-                    self._send(self._heartbeat())
+            self._steps += 1
+            self._time = self._steps * self.clock.step_s
+            self._advance(self.clock.step_s)
+            if (self._steps - self._first_step) % heartbeat_steps == 0:
+                self._send(self._heartbeat())
+        self.clock.finished(self._vehicle, self._steps)
 
     def _send(self, spec: MessageSpec) -> None:
         for _ in range(self._channel.outgoing_copies()):
@@ -319,7 +339,7 @@ class MockAutopilot:
 
     def _position(self) -> MessageSpec:
         lat, lon, alt = self.flight.reported_geodetic()
-        east, north, up = self.flight.velocity
+        east, north, up = self.flight.reported_velocity()
         heading = UNKNOWN_HEADING
         if math.hypot(east, north) > 0.1:
             heading = round(math.degrees(math.atan2(east, north)) % 360.0 * 100) % 36000
@@ -342,6 +362,8 @@ class MockAutopilot:
             return self._server.handle(msg, self._time, self._booting())
         if kind == "MISSION_SET_CURRENT":
             return self._set_current(msg.seq)
+        if kind in _PARAMETER_PROTOCOL:
+            return self.parameters.handle(msg)
         if kind == "COMMAND_LONG":
             result = self._command(msg)
             return [command_ack(msg.command, result, sender)]
@@ -356,7 +378,8 @@ class MockAutopilot:
         if 1 <= seq < len(items):
             self._start_seq = seq
             if self.flight.running:
-                self.flight.start(items, seq, self._home.alt_m)
+                self.flight.jump(items, seq, self._home.alt_m)
+                self._current = seq  # until the nav item it runs to reports itself
         return [
             mission_current(self._current if self.flight.running else self._start_seq, len(items))
         ]
@@ -411,5 +434,6 @@ class MockAutopilot:
         navs = [i for i in items[self._start_seq :] if int(i.command) in NAV_COMMANDS]
         if not navs or (self.flight.on_ground and int(navs[0].command) != MavCmd.NAV_TAKEOFF):
             return dialect.MAV_RESULT_FAILED
-        self.flight.start(items, self._start_seq, self._home.alt_m)
+        settings = settings_from_parameters(self.parameters.values)
+        self.flight.start(items, self._start_seq, self._home.alt_m, settings)
         return dialect.MAV_RESULT_ACCEPTED

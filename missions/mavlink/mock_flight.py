@@ -3,55 +3,77 @@
 Not a flight dynamics model: a point that follows the mission's legs with a speed profile,
 enough to check timing and geometry of multi-drone missions.
 
-- **Time.** :class:`SimClock` runs ``speedup`` times faster than the monotonic clock; mocks
-  that share one clock share one epoch, so their timestamps (``time_boot_ms``) compare
-  directly. UTC for NAV_DELAY is ``epoch_utc`` plus simulated time (plus a per-vehicle
-  offset, to imitate vehicles whose clocks disagree, design.md section 9).
+- **Time.** The mock autopilot steps the flight on a shared
+  :class:`~missions.mavlink.sim_clock.SimClock`; mocks that share one clock share one epoch,
+  so their timestamps (``time_boot_ms``) compare directly. UTC for NAV_DELAY is
+  ``epoch_utc`` plus simulated time (plus a per-vehicle offset, to imitate vehicles whose
+  clocks disagree, design.md section 9).
 - **Space.** Positions are local ENU metres about a fixed origin (the configured start
   position); geodetic <-> ENU goes through pymap3d.
 - **Commands.** Altitudes are flown as ArduPilot stores them, in whole centimetres
-  (:func:`~missions.geodesy.ardupilot_altitude`; a download still returns the items as
-  uploaded). NAV_TAKEOFF climbs vertically to the item altitude. NAV_WAYPOINT flies the
-  straight 3-D line to the item at the current speed, with the along-track speed changing at
-  most ``max_accel_mps2``; param1 is the hold time [s] at the waypoint. DO_CHANGE_SPEED
-  sets the speed (param2 [m/s]; param1 0/1 horizontal, 2 climb, 3 descent) from the next
-  leg on (do-commands between two nav items take effect when the leg to the second one
-  starts, as ArduPilot's AP_Mission runs them); a horizontal speed below
-  ``min_ground_speed_mps`` is ignored, as ArduCopter's AC_WPNav does (WPNAV_WP_SPEED_MIN,
-  20 cm/s up to Copter 4.5). NAV_DELAY waits param1 seconds, or with
+  (:func:`~missions.geodesy.ardupilot_altitude`). NAV_TAKEOFF climbs vertically to the item
+  altitude. NAV_SPLINE_WAYPOINT legs are flown as ArduCopter 4.5 flies them
+  (:mod:`.mock_spline`, with the model of :mod:`missions.autopilots.spline`), with the
+  vehicle's navigation parameters (:func:`~.mock_params.settings_from_parameters`:
+  WPNAV_SPEED, _UP and _DN are the speed limits until a DO_CHANGE_SPEED changes them,
+  WPNAV_ACCEL and _ACCEL_Z the accelerations, PSC_* and WPNAV_JERK the tracking); param1
+  is a hold time [s] at the waypoint. The position and velocity reported are the modelled
+  vehicle's, which lags its target as a copter does (a few centimetres, more in braking);
+  after the legs it settles onto the target with the position controller's time constant
+  (1 / PSC_POSXY_P). NAV_WAYPOINT is the mock's own simpler leg, not
+  ArduCopter's S-curve: the straight 3-D line to the item, with the along-track speed
+  changing at most ``max_accel_mps2``, at :class:`Dynamics`' speeds until a DO_CHANGE_SPEED
+  changes them; param1 is the hold time [s] at the waypoint. DO_CHANGE_SPEED sets a speed
+  limit (param2 [m/s]; param1 0/1 horizontal, 2 climb, 3 descent) from the next leg on
+  (do-commands between two nav items run when the leg to the second one starts, as
+  ArduPilot's AP_Mission runs them); a horizontal speed below ``min_ground_speed_mps`` is
+  ignored, as ArduCopter's AC_WPNav does (WPNAV_WP_SPEED_MIN, 20 cm/s up to Copter 4.5),
+  climb and descent speeds have no floor. NAV_DELAY waits param1 seconds, or with
   param1 = -1 until the UTC time of day param2:param3:param4 (hour:minute:second, -1 to
   ignore the hour or minute; ArduPilot's AP_RTC rule: the next such time, so a time just
   past waits a day). The specification has a 1 s resolution (no fraction of a second can be
   given); the release happens at the exact second. NAV_LOITER_UNLIM holds forever; NAV_LAND
   descends at the land speed and disarms on touchdown.
-- **Imperfections** (:class:`Imperfections`): start delay, a scale on every speed, a
-  slow-down at waypoints (the speed through a waypoint drops by that fraction, 1 = stop, as
-  ArduCopter decelerates around waypoints), and Gaussian position noise on what is reported
-  (not on the state).
+- **DO items before a spline leg**: only the first runs before the leg is set up (the speed
+  it may end with, from the next leg's entry limit); AP_Mission runs each further one a loop
+  tick later (:mod:`missions.autopilots.ardupilot`), when they change the leg's speed
+  limits but no longer its exit speed.
+- **Jumps.** :meth:`KinematicFlight.jump` (MISSION_SET_CURRENT during a flight) runs the
+  mission from the given item at once, DO items first, keeping the speed limits set so far
+  (ArduPilot's ``AP_Mission::set_current_cmd``); a spline leg after it starts from rest.
+- **Imperfections** (:class:`Imperfections`): start delay (at every start or jump), a scale
+  on every speed (spline legs: on their speed limits), a slow-down at straight waypoints
+  (the speed through a waypoint drops by that fraction, 1 = stop, as ArduCopter decelerates
+  around waypoints), and Gaussian position noise on what is reported (not on the state).
 
-Simplification: the acceleration bound acts along the track only; a change of direction at
-a waypoint is instantaneous.
+Simplifications of straight legs: the acceleration bound acts along the track only; a
+change of direction at a waypoint is instantaneous. A spline leg followed by a straight one
+stops at their waypoint.
 """
 
 from __future__ import annotations
 
 import datetime as dt
-import math
-import time
 from collections.abc import Generator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pymap3d
 
-from flycrane.errors import FieldProblem, InputError
+from missions.autopilots.ardupilot import ArduCopterSettings
+from missions.autopilots.spline import SpeedLimits, kinematic_limit
 from missions.geodesy import ardupilot_altitude
 from missions.items import MavCmd, MissionItem
+from missions.mavlink.mock_config import Dynamics, Geodetic, Imperfections
+from missions.mavlink.mock_params import ARDUCOPTER_DEFAULTS, settings_from_parameters
+from missions.mavlink.mock_spline import NextWaypoint, SplineLeg, SplineNavigator
+from missions.mavlink.mock_straight import SpeedProfile
 
 #: The commands the mock flies; anything else is refused at upload (MAV_MISSION_UNSUPPORTED).
 NAV_COMMANDS = frozenset(
     {
         MavCmd.NAV_WAYPOINT,
+        MavCmd.NAV_SPLINE_WAYPOINT,
         MavCmd.NAV_LOITER_UNLIM,
         MavCmd.NAV_LAND,
         MavCmd.NAV_TAKEOFF,
@@ -61,100 +83,26 @@ NAV_COMMANDS = frozenset(
 SUPPORTED_COMMANDS = NAV_COMMANDS | {MavCmd.DO_CHANGE_SPEED}
 #: Nav commands whose x/y/z are a location.
 LOCATION_COMMANDS = frozenset(
-    {MavCmd.NAV_WAYPOINT, MavCmd.NAV_LOITER_UNLIM, MavCmd.NAV_LAND, MavCmd.NAV_TAKEOFF}
+    {
+        MavCmd.NAV_WAYPOINT,
+        MavCmd.NAV_SPLINE_WAYPOINT,
+        MavCmd.NAV_LOITER_UNLIM,
+        MavCmd.NAV_LAND,
+        MavCmd.NAV_TAKEOFF,
+    }
 )
 RELATIVE_ALT_FRAMES = frozenset({3, 6})
 
 #: Below this height [m] the vehicle counts as on the ground.
 GROUND_CLEARANCE_M = 0.05
+#: DO_CHANGE_SPEED speed types (param1) and the limit each sets; 0 (airspeed) is Copter's
+#: ground speed too.
+_SPEED_TYPES = {0: "horizontal", 1: "horizontal", 2: "up", 3: "down"}
 
 
-def _positive(owner: str, **values: float) -> None:
-    problems = [FieldProblem(k, f"must be > 0, got {v}") for k, v in values.items() if not v > 0]
-    if problems:
-        raise InputError(problems, source=owner)
-
-
-@dataclass(frozen=True)
-class SimClock:
-    """Simulated time: ``speedup`` times the monotonic clock since ``epoch_monotonic`` [s]."""
-
-    speedup: float = 1.0
-    epoch_monotonic: float = field(default_factory=time.monotonic)
-    epoch_utc: float = field(default_factory=time.time)  #: POSIX time at the epoch [s]
-
-    def __post_init__(self) -> None:
-        _positive("SimClock", speedup=self.speedup)
-
-    def now(self) -> float:
-        """Simulated seconds since the epoch."""
-        return (time.monotonic() - self.epoch_monotonic) * self.speedup
-
-    def real_seconds(self, sim_seconds: float) -> float:
-        """Wall-clock duration of ``sim_seconds`` of simulated time [s]."""
-        return sim_seconds / self.speedup
-
-
-@dataclass(frozen=True)
-class Geodetic:
-    """A WGS84 position: latitude, longitude [deg], altitude AMSL [m]."""
-
-    lat_deg: float
-    lon_deg: float
-    alt_m: float
-
-    def __post_init__(self) -> None:
-        problems = []
-        if not -90.0 <= self.lat_deg <= 90.0:
-            problems.append(FieldProblem("lat_deg", f"must be in [-90, 90], got {self.lat_deg}"))
-        if not -180.0 <= self.lon_deg <= 180.0:
-            problems.append(FieldProblem("lon_deg", f"must be in [-180, 180], got {self.lon_deg}"))
-        if problems:
-            raise InputError(problems, source="Geodetic")
-
-
-@dataclass(frozen=True)
-class Dynamics:
-    """Speed and acceleration limits; defaults are ArduCopter's (WPNAV_*, LAND_SPEED)."""
-
-    cruise_speed_mps: float = 5.0
-    max_accel_mps2: float = 2.5
-    climb_speed_mps: float = 2.5
-    descent_speed_mps: float = 1.5
-    land_speed_mps: float = 0.5
-    min_ground_speed_mps: float = 0.2  #: smaller DO_CHANGE_SPEED ground speeds are ignored
-
-    def __post_init__(self) -> None:
-        _positive("Dynamics", **{k: getattr(self, k) for k in self.__dataclass_fields__})
-
-
-@dataclass(frozen=True)
-class Imperfections:
-    """How one mock vehicle departs from the ideal (module docstring); defaults: none."""
-
-    start_delay_s: float = 0.0  #: from MISSION_START to moving [s]
-    speed_scale: float = 1.0  #: flown speed / commanded speed
-    waypoint_slowdown: float = 0.0  #: speed lost through a waypoint, 0 (none) .. 1 (stop)
-    position_noise_m: float = 0.0  #: std dev of reported position, per axis [m]
-    clock_offset_s: float = 0.0  #: this vehicle's UTC error [s]
-    seed: int = 0  #: of the position noise
-
-    def __post_init__(self) -> None:
-        problems = []
-        if self.start_delay_s < 0:
-            problems.append(FieldProblem("start_delay_s", f"must be >= 0: {self.start_delay_s}"))
-        if not self.speed_scale > 0:
-            problems.append(FieldProblem("speed_scale", f"must be > 0: {self.speed_scale}"))
-        if not 0.0 <= self.waypoint_slowdown <= 1.0:
-            problems.append(
-                FieldProblem("waypoint_slowdown", f"must be in [0, 1]: {self.waypoint_slowdown}")
-            )
-        if self.position_noise_m < 0:
-            problems.append(
-                FieldProblem("position_noise_m", f"must be >= 0: {self.position_noise_m}")
-            )
-        if problems:
-            raise InputError(problems, source="Imperfections")
+def default_settings() -> ArduCopterSettings:
+    """The navigation model of a vehicle with ArduCopter's default parameters."""
+    return settings_from_parameters({name: v for name, (v, _) in ARDUCOPTER_DEFAULTS.items()})
 
 
 def seconds_until_utc(now_utc: float, hour: int, minute: int, second: int) -> float:
@@ -190,61 +138,6 @@ class FlightEvent:
     seq: int
 
 
-@dataclass(frozen=True)
-class SpeedProfile:
-    """Along-track motion over one leg: the speed ramps at +-``accel`` from ``v_in`` to
-    ``v_peak``, holds it for ``cruise_s``, and ramps to ``v_out`` [m, m/s, m/s^2, s]."""
-
-    length: float
-    v_in: float
-    v_peak: float
-    v_out: float
-    accel: float
-    cruise_s: float
-
-    @classmethod
-    def plan(
-        cls, length: float, v_in: float, cruise: float, v_exit: float, accel: float
-    ) -> SpeedProfile:
-        """The fastest profile entering at ``v_in`` that never exceeds ``cruise`` (unless it
-        enters faster and must first slow down) and passes the end at ``v_exit``; if the leg
-        is too short to reach ``v_exit``, it ends at the speed the ramp reaches."""
-        reach = 2.0 * accel * length
-        if v_in**2 >= v_exit**2 + reach:  # cannot slow down to v_exit: brake all the way
-            return cls(length, v_in, v_in, math.sqrt(v_in**2 - reach), accel, 0.0)
-        if v_exit**2 >= v_in**2 + reach:  # cannot speed up to v_exit: accelerate all the way
-            return cls(length, v_in, v_in, math.sqrt(v_in**2 + reach), accel, 0.0)
-        # the triangle's apex, or cruise; entering above cruise, the apex exceeds v_in and
-        # the profile slows down to cruise first
-        peak = min(cruise, math.sqrt((reach + v_in**2 + v_exit**2) / 2.0))
-        ramps = (abs(peak**2 - v_in**2) + abs(peak**2 - v_exit**2)) / (2.0 * accel)
-        return cls(length, v_in, peak, v_exit, accel, max(length - ramps, 0.0) / peak)
-
-    def _ramp(self, v_from: float, v_to: float) -> tuple[float, float]:
-        duration = abs(v_to - v_from) / self.accel
-        return duration, 0.5 * (v_from + v_to) * duration
-
-    @property
-    def duration(self) -> float:
-        return (abs(self.v_peak - self.v_in) + abs(self.v_peak - self.v_out)) / self.accel + (
-            self.cruise_s
-        )
-
-    def at(self, t: float) -> tuple[float, float]:
-        """Distance along the leg [m] and speed [m/s] at ``t`` [s] after its start."""
-        t1, d1 = self._ramp(self.v_in, self.v_peak)
-        t2, t3 = self.cruise_s, abs(self.v_peak - self.v_out) / self.accel
-        if t < t1:
-            change = (1.0 if self.v_peak >= self.v_in else -1.0) * self.accel
-            return self.v_in * t + 0.5 * change * t * t, self.v_in + change * t
-        if t < t1 + t2:
-            return d1 + self.v_peak * (t - t1), self.v_peak
-        tau = min(t - t1 - t2, t3)
-        sign = 1.0 if self.v_out >= self.v_peak else -1.0
-        distance = d1 + self.v_peak * t2 + self.v_peak * tau + 0.5 * sign * self.accel * tau**2
-        return min(distance, self.length), self.v_peak + sign * self.accel * tau
-
-
 #: A phase of the flight: receives each step's duration [s], returns the time left over in
 #: the step in which it ended [s], so that the next phase starts at the exact instant.
 Phase = Generator[None, float, float]
@@ -264,7 +157,7 @@ class KinematicFlight:
     dynamics, imperfections
         See :class:`Dynamics`, :class:`Imperfections`.
     epoch_utc : float
-        POSIX time [s] at simulated time 0 (:attr:`SimClock.epoch_utc`).
+        POSIX time [s] at simulated time 0 (:attr:`~missions.mavlink.sim_clock.SimClock.epoch_utc`).
     """
 
     def __init__(
@@ -283,9 +176,12 @@ class KinematicFlight:
         self.landed_disarm = False  #: set when NAV_LAND touched down (the autopilot disarms)
         self.finished = False
         self._speed = 0.0  # along-track speed carried from one leg into the next [m/s]
-        self._cruise = dynamics.cruise_speed_mps
-        self._climb = dynamics.climb_speed_mps
-        self._descent = dynamics.descent_speed_mps
+        # where the vehicle is against its target (spline legs: the tracking model's lag;
+        # after them it settles with the position controller's time constant) [m, m/s]
+        self._lag = np.zeros(3)
+        self._lag_velocity = np.zeros(3)
+        self._overrides: dict[str, float] = {}  # DO_CHANGE_SPEED limits so far [m/s]
+        self._navigator = SplineNavigator(default_settings())
         self._program: Generator[None, float, None] | None = None
         self._events: list[FlightEvent] = []
         self._time = 0.0
@@ -299,25 +195,41 @@ class KinematicFlight:
     def on_ground(self) -> bool:
         return self.position[2] <= GROUND_CLEARANCE_M
 
-    def start(self, items: Sequence[MissionItem], first_seq: int, home_alt_m: float) -> None:
+    def start(
+        self,
+        items: Sequence[MissionItem],
+        first_seq: int,
+        home_alt_m: float,
+        settings: ArduCopterSettings | None = None,
+    ) -> None:
         """Fly ``items`` from ``first_seq`` (seq 0 is home and never flown) from the next
-        step on; relative altitudes are above ``home_alt_m`` (AMSL)."""
-        self._cruise = self.dynamics.cruise_speed_mps
-        self._climb = self.dynamics.climb_speed_mps
-        self._descent = self.dynamics.descent_speed_mps
+        step on; relative altitudes are above ``home_alt_m`` (AMSL). ``settings``: the
+        vehicle's navigation parameters (default: ArduCopter's defaults); speed limits
+        start from them (spline legs) and from :class:`Dynamics` (straight legs)."""
+        self._overrides = {}
+        self._navigator = SplineNavigator(settings or default_settings())
+        self.jump(items, first_seq, home_alt_m)
+
+    def jump(self, items: Sequence[MissionItem], seq: int, home_alt_m: float) -> None:
+        """Go on from ``seq`` from the next step on, keeping the speed limits in force
+        (MISSION_SET_CURRENT during a flight, module docstring)."""
         self.finished = False
         self.landed_disarm = False
-        self._program = self._execute(tuple(items), max(first_seq, 1), home_alt_m)
+        self._navigator.stop()
+        self._program = self._execute(tuple(items), max(seq, 1), home_alt_m)
         next(self._program)
 
     def stop(self) -> None:
         self._program = None
         self.velocity[:] = 0.0
         self._speed = 0.0
+        self._navigator.stop()
 
     def step(self, now: float, dt_s: float) -> list[FlightEvent]:
         """Advance by one step of ``dt_s`` ending at ``now`` [s]; the events of that step."""
         self._time = now
+        settle = np.exp(-dt_s * self._navigator.settings.position_p)
+        self._lag, self._lag_velocity = self._lag * settle, self._lag_velocity * settle
         if self._program is not None and not self.finished:
             try:
                 self._program.send(dt_s)
@@ -345,8 +257,9 @@ class KinematicFlight:
         return np.array([e, n, u], dtype=float)
 
     def reported_geodetic(self) -> tuple[float, float, float]:
-        """(lat [deg], lon [deg], alt AMSL [m]) of the position with the configured noise."""
-        enu = self.position
+        """(lat [deg], lon [deg], alt AMSL [m]) of the vehicle (its target and its lag),
+        with the configured noise."""
+        enu = self.position + self._lag
         sigma = self.imperfections.position_noise_m
         if sigma > 0:
             enu = enu + self._rng.normal(0.0, sigma, 3)
@@ -362,18 +275,33 @@ class KinematicFlight:
     ) -> Generator[None, float, None]:
         carry = yield  # the first step's duration: all of it is mission time
         carry = yield from self._hold(self.imperfections.start_delay_s, carry)
+        # the limits a spline leg is set up with: those after the first DO item before it
+        # (ArduPilot runs the others one loop tick later, module docstring)
+        at_setup, first_do = dict(self._overrides), True
         for seq in range(first, len(items)):
             item = items[seq]
             command = int(item.command)
             if command == MavCmd.DO_CHANGE_SPEED:
                 self._change_speed(item)
+                if first_do:
+                    at_setup, first_do = dict(self._overrides), False
                 continue
+            if first_do:
+                at_setup = dict(self._overrides)
+            first_do = True
             self._events.append(FlightEvent("current", seq))  # MISSION_CURRENT: nav items
+            if command == MavCmd.NAV_SPLINE_WAYPOINT:
+                carry = yield from self._spline(items, seq, home_alt, at_setup, carry)
+                carry = yield from self._hold(max(item.param1, 0.0), carry)
+                self._events.append(FlightEvent("reached", seq))
+                continue
+            self._navigator.stop()  # a spline leg after any other nav item starts at rest
             if command == MavCmd.NAV_TAKEOFF:
                 altitude = self.enu_from_item(item, home_alt)[2]
                 if self.position[2] < altitude:
                     top = np.array([*self.position[:2], altitude])
-                    carry = yield from self._fly(top, self._climb, 0.0, carry)
+                    climb = self._limits(self._straight_base()).up
+                    carry = yield from self._fly(top, climb, 0.0, carry)
             elif command == MavCmd.NAV_WAYPOINT:
                 target = self.enu_from_item(item, home_alt)
                 through = 1.0 - self.imperfections.waypoint_slowdown
@@ -392,14 +320,28 @@ class KinematicFlight:
             self._events.append(FlightEvent("reached", seq))
 
     def _change_speed(self, item: MissionItem) -> None:
+        """ArduCopter's ``do_change_speed`` (its ``desired_speed_override``)."""
         if item.param2 <= 0:  # -1 (or 0) means "no change" in MAV_CMD_DO_CHANGE_SPEED
             return
-        if int(item.param1) == 2:
-            self._climb = item.param2
-        elif int(item.param1) == 3:
-            self._descent = item.param2
-        elif item.param2 >= self.dynamics.min_ground_speed_mps:
-            self._cruise = item.param2
+        limit = _SPEED_TYPES.get(int(item.param1))
+        if limit == "horizontal" and item.param2 < self.dynamics.min_ground_speed_mps:
+            return
+        if limit is not None:
+            self._overrides[limit] = float(item.param2)
+
+    def _spline_limits(self, overrides: dict[str, float]) -> SpeedLimits:
+        """The vehicle's WPNAV_SPEED* with ``overrides``, times the speed scale."""
+        limits = replace(self._navigator.settings.initial_speeds, **overrides)
+        scale = self.imperfections.speed_scale
+        return SpeedLimits(limits.horizontal * scale, limits.up * scale, limits.down * scale)
+
+    def _straight_base(self) -> SpeedLimits:
+        d = self.dynamics
+        return SpeedLimits(d.cruise_speed_mps, d.climb_speed_mps, d.descent_speed_mps)
+
+    def _limits(self, base: SpeedLimits) -> SpeedLimits:
+        """``base`` with the DO_CHANGE_SPEED limits set so far."""
+        return replace(base, **self._overrides)
 
     @staticmethod
     def _passes_through(items: tuple[MissionItem, ...], seq: int) -> bool:
@@ -416,18 +358,73 @@ class KinematicFlight:
         cruise (ground) speed and whose vertical part within the climb or descent speed, as
         ArduCopter's S-curve track limits it (SCurve::calculate_track, kinematic_limit)
         [m/s]."""
+        limits = self._limits(self._straight_base())
         delta = target - self.position
-        length = float(np.linalg.norm(delta))
-        if length == 0:
-            return self._cruise
-        horizontal = float(np.linalg.norm(delta[:2])) / length
-        vertical = float(delta[2]) / length
-        limits = [self._cruise / horizontal] if horizontal > 1e-9 else []
-        if vertical > 1e-9:
-            limits.append(self._climb / vertical)
-        elif vertical < -1e-9:
-            limits.append(self._descent / -vertical)
-        return min(limits)
+        if not np.any(delta):
+            return limits.horizontal
+        return kinematic_limit(delta, limits.horizontal, limits.up, limits.down)
+
+    def _next_nav(
+        self, items: tuple[MissionItem, ...], seq: int, home_alt: float, default: np.ndarray
+    ) -> tuple[int, NextWaypoint] | None:
+        """The first nav item after ``seq``: its seq and where it is (ArduCopter's
+        ``loc_from_cmd``: a zero latitude and longitude, or altitude, stand for
+        ``default``'s; an item without a location is at ``default``)."""
+        for later in range(seq + 1, len(items)):
+            item = items[later]
+            if int(item.command) not in NAV_COMMANDS:
+                continue
+            position = default.copy()
+            if int(item.command) in LOCATION_COMMANDS:
+                located = self.enu_from_item(item, home_alt)
+                if item.x != 0 or item.y != 0:
+                    position[:2] = located[:2]
+                if item.z != 0:
+                    position[2] = located[2]
+            return later, NextWaypoint(position, int(item.command) == MavCmd.NAV_SPLINE_WAYPOINT)
+        return None
+
+    def _spline(
+        self,
+        items: tuple[MissionItem, ...],
+        seq: int,
+        home_alt: float,
+        at_setup: dict[str, float],
+        carry: float,
+    ) -> Phase:
+        """The spline leg to waypoint ``seq`` (:class:`~.mock_spline.SplineNavigator`)."""
+        destination = self.enu_from_item(items[seq], home_alt)
+        following = after = None
+        if items[seq].param1 <= 0:  # a hold at the waypoint makes it a stop
+            following = self._next_nav(items, seq, home_alt, destination)
+        if following is not None and items[following[0]].param1 <= 0:
+            after = self._next_nav(items, following[0], home_alt, following[1].position)
+        leg = self._navigator.leg(
+            self.position.copy(),
+            destination,
+            None if following is None else following[1],
+            None if after is None else after[1],
+            self._spline_limits(self._overrides),
+            self._spline_limits(at_setup),
+        )
+        elapsed = carry
+        while elapsed < leg.duration:
+            self._follow(leg, elapsed)
+            elapsed += yield
+        self._follow(leg, leg.duration)
+        self.position = destination
+        self._speed = leg.exit_speed
+        return elapsed - leg.duration
+
+    def _follow(self, leg: SplineLeg, elapsed: float) -> None:
+        """Target and vehicle ``elapsed`` [s] into a spline leg."""
+        self.position, self.velocity = leg.at(elapsed)
+        vehicle, velocity = leg.vehicle_at(elapsed)
+        self._lag, self._lag_velocity = vehicle - self.position, velocity - self.velocity
+
+    def reported_velocity(self) -> np.ndarray:
+        """The vehicle's velocity (ENU m/s): its target's and its lag's."""
+        return self.velocity + self._lag_velocity
 
     def _hold(self, duration: float, carry: float) -> Phase:
         """Stay put for ``duration`` [s]."""

@@ -18,7 +18,9 @@ and ``AP_Mission`` (design.md section 9):
 - While booting, MISSION_COUNT is answered with MAV_MISSION_NO_SPACE.
 - Download: MISSION_REQUEST_INT gets MISSION_ITEM_INT, MISSION_REQUEST gets MISSION_ITEM;
   seq 0 always reads back as the current home (frame GLOBAL, altitude AMSL), whatever was
-  uploaded there. A request during an upload is DENIED.
+  uploaded there; a DO command sent in frame MISSION reads back in frame GLOBAL
+  (:func:`~.messages.ardupilot_frame`); everything else as uploaded. A request during an
+  upload is DENIED.
 - Only the MISSION type is kept; fence and rally transfers are MAV_MISSION_UNSUPPORTED.
 """
 
@@ -33,6 +35,7 @@ from missions.items import MavCmd, MavFrame, MissionItem
 from missions.mavlink.messages import (
     Endpoint,
     MessageSpec,
+    ardupilot_frame,
     dialect,
     item_from_message,
     mission_ack,
@@ -189,6 +192,7 @@ class MissionServer:
             self._upload = None
             logger.info("item %d refused: %s", item.seq, mission_result_name(problem))
             return [mission_ack(problem, sender)]
+        item = ardupilot_frame(item)
         if item.seq < len(self._items):
             self._items[item.seq] = item
         else:

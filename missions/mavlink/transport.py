@@ -44,8 +44,13 @@ GCS_COMPONENT_ID = 190
 #: Who we are on the link by default: system 255, the usual ground station id.
 GROUND_STATION = Endpoint(255, GCS_COMPONENT_ID)
 
-_NETWORK = re.compile(r"^(udpin|udpout|udp|tcpin|tcp):(?://)?(?P<host>[^:/]+):(?P<port>\d+)$")
-_SERIAL = re.compile(r"^(?:serial:(?://)?)?(?P<device>/dev/[^,:]+|COM\d+)(?:[,:](?P<baud>\d+))?$")
+# ASCII digits only (re.ASCII): int() would read other scripts' digits as a port or a baud.
+_NETWORK = re.compile(
+    r"^(udpin|udpout|udp|tcpin|tcp):(?://)?(?P<host>[^:/]+):(?P<port>\d+)$", re.ASCII
+)
+_SERIAL = re.compile(
+    r"^(?:serial:(?://)?)?(?P<device>/dev/[^,:]+|COM\d+)(?:[,:](?P<baud>\d+))?$", re.ASCII
+)
 
 
 @dataclass(frozen=True)
@@ -200,7 +205,7 @@ class VehicleLink:
         self._send_lock = threading.Lock()
         self._subscribers_lock = threading.Lock()
         self._inboxes: list[Inbox] = []
-        self._listeners: list[tuple[frozenset[str], Listener]] = []
+        self._listeners: list[tuple[frozenset[str] | None, Listener]] = []
         self._info: VehicleInfo | None = None
         self._heard = threading.Event()
         self._stop = threading.Event()
@@ -252,13 +257,14 @@ class VehicleLink:
             if inbox in self._inboxes:
                 self._inboxes.remove(inbox)
 
-    def add_listener(self, types: Iterable[str], callback: Listener) -> None:
-        """Call ``callback(msg)`` from the reader thread for every message of ``types``.
+    def add_listener(self, types: Iterable[str] | None, callback: Listener) -> None:
+        """Call ``callback(msg)`` from the reader thread for every message of ``types``
+        (None: every message from the vehicle).
 
         The callback must be quick and must not raise (it runs on the link's only reader).
         """
         with self._subscribers_lock:
-            self._listeners.append((frozenset(types), callback))
+            self._listeners.append((None if types is None else frozenset(types), callback))
 
     def remove_listener(self, callback: Listener) -> None:
         with self._subscribers_lock:
@@ -296,7 +302,7 @@ class VehicleLink:
             return
         with self._subscribers_lock:
             inboxes = [i for i in self._inboxes if kind in i.types]
-            listeners = [c for types, c in self._listeners if kind in types]
+            listeners = [c for types, c in self._listeners if types is None or kind in types]
         for inbox in inboxes:
             inbox.put(msg)
         for callback in listeners:

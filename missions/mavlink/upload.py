@@ -16,6 +16,10 @@ NAV_WAYPOINT without acceptance radius: :func:`~.messages.ardupilot_readback`); 
 vehicle reported is returned in :class:`UploadReport` so the caller can check it against the
 mission's origin. :attr:`Verification.ALL_ITEMS` compares seq 0 as
 well (vehicles that store it verbatim, e.g. PX4 or MAVSDK's MissionRawServer).
+
+Given the parameters the mission assumes (its ``.parm``), the upload reads each back from
+the vehicle and reports every difference (:attr:`UploadReport.parameter_errors`, logged as
+warnings): the mission is on board, but its timing holds only with those values.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from __future__ import annotations
 import enum
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from missions.items import DroneMission, MissionItem
@@ -31,8 +35,10 @@ from missions.mavlink.errors import (
     FinalAckTimeoutError,
     MavlinkError,
     MissionVerificationError,
+    ParameterError,
 )
 from missions.mavlink.messages import COMPARED_FIELDS, ardupilot_readback, item_difference
+from missions.mavlink.params import ParameterCheck, check_parameters
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.transfer import clear_mission, download_mission, upload_mission
 from missions.mavlink.transport import VehicleLink
@@ -53,7 +59,9 @@ class UploadReport:
     """A verified upload to one vehicle.
 
     ``home`` is seq 0 as read back (the vehicle's home for ArduPilot), None without
-    verification; ``duration_s`` covers upload and read-back [s].
+    verification; ``duration_s`` covers upload and read-back [s]; ``parameters`` the
+    vehicle's parameters read back against the mission's ``.parm`` (empty when none was
+    given).
     """
 
     vehicle: str
@@ -61,6 +69,13 @@ class UploadReport:
     item_count: int
     home: MissionItem | None
     duration_s: float
+    parameters: tuple[ParameterCheck, ...] = ()
+
+    @property
+    def parameter_errors(self) -> tuple[ParameterError, ...]:
+        """The parameters that differ from the mission's (each names vehicle, parameter,
+        expected and found value)."""
+        return tuple(check.error() for check in self.parameters if not check.ok)
 
 
 def verify_mission(
@@ -114,8 +129,10 @@ def upload_and_verify(
     mission: DroneMission | Sequence[MissionItem],
     policy: RetryPolicy,
     verification: Verification = Verification.ARDUPILOT,
+    parameters: Mapping[str, float] | None = None,
 ) -> UploadReport:
-    """Upload ``mission`` on ``link`` (heartbeat already received) and verify it.
+    """Upload ``mission`` on ``link`` (heartbeat already received) and verify it; then read
+    ``parameters`` (the mission's ``.parm``) back from the vehicle and compare.
 
     Raises
     ------
@@ -139,10 +156,15 @@ def upload_and_verify(
     except MavlinkError:
         _discard(link, policy)
         raise
-    return UploadReport(
+    checks = check_parameters(link, parameters, policy) if parameters else ()
+    report = UploadReport(
         vehicle=link.name,
         system_id=link.info.system_id,
         item_count=len(items),
         home=home,
         duration_s=time.monotonic() - started,
+        parameters=checks,
     )
+    for error in report.parameter_errors:
+        logger.warning("%s", error)
+    return report

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import pytest
 
@@ -48,3 +50,21 @@ def test_system_file_written_by_the_cli_loads_back(tmp_path, capsys):
     assert main(["system", "--write", str(path)]) == 0
     assert main(["statics", "--system", str(path), "--json"]) == 0
     assert "wrote" in capsys.readouterr().out
+
+
+def test_a_command_loads_only_its_own_plug_in():
+    """Each plug-in command imports its own stack; running one must not pay for the others,
+    and a command line naming none (help, a typo) must still list them all."""
+    probe = (
+        "import sys; from flycrane.cli import build_parser; "
+        "build_parser(['plan', '--out', 'x']); "
+        "print(sorted(m for m in ('missions.sitl.cli', 'missions.flight_report', "
+        "'missions.mavlink.mock_autopilot', 'service.cli') if m in sys.modules)); "
+        "names = build_parser(['--help'])._subparsers._group_actions[0].choices; "
+        "print(sorted(names))"
+    )
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    loaded, names = run.stdout.splitlines()
+    assert loaded == "[]"
+    for command in ("plan", "fly-sitl", "flight-report", "mock-autopilot", "serve", "statics"):
+        assert repr(command) in names

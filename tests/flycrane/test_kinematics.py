@@ -43,6 +43,25 @@ def test_tilt_torsion_round_trip_gives_the_same_rotation(tau):
     np.testing.assert_allclose(matrix_from_tilt_torsion(recovered), r, atol=1e-9)
 
 
+@pytest.mark.parametrize("tilt_scale", [1e-15, 1e-9, 1e-6])
+def test_round_trip_keeps_tilts_too_small_for_arccos(tilt_scale):
+    # cos(theta) rounds to 1 below theta ~ 1e-8 rad: the tilt must come from sin(theta).
+    rng = np.random.default_rng(7)
+    tau = np.stack(
+        [
+            rng.uniform(-np.pi, np.pi, 1000),
+            rng.uniform(0, tilt_scale, 1000),
+            rng.uniform(-np.pi, np.pi, 1000),
+        ],
+        axis=-1,
+    )
+    for tilts in (tau, tau * [1, -1, 1] + [0, np.pi, 0]):  # near theta = 0 and near pi
+        r = matrix_from_tilt_torsion(tilts)
+        np.testing.assert_allclose(
+            matrix_from_tilt_torsion(tilt_torsion_from_matrix(r)), r, atol=1e-14
+        )
+
+
 def test_zero_tilt_torsion_is_yaw():
     r = matrix_from_tilt_torsion([[0.7, 0.0, 0.3]])[0]
     np.testing.assert_allclose(r, Rotation.from_euler("z", 0.3).as_matrix(), atol=1e-15)

@@ -44,3 +44,11 @@ def test_profile_matches_statics_at_the_samples(system, tmp_path):
     single = plot_path_profile(profile, system, tmp_path / "p.png", title="demo")
     for png in (bands, single):
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_title_is_text_not_mathtext(system, tmp_path):
+    """Issue 10, item 9: a task named like broken mathtext failed its task after planning."""
+    path = np.array([[0, 0, 5, 0, 0, 0, 1, 1, 1], [1, 0, 5, 0, 0, 0, 1, 1, 1]], dtype=float)
+    profile = path_profile(system, SPACE, path, steps=2)
+    png = plot_path_profile(profile, system, tmp_path / "p.png", title=r"bridge $\frac{1}{$ 50%")
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

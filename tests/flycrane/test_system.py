@@ -82,7 +82,7 @@ def test_generic_geometry_round_trip(tmp_path):
             "perturbation.matrix",
             "symmetric",
         ),
-        ({"perturbation": {"force": 0}}, "perturbation.force", "greater than 0"),
+        ({"perturbation": {"force": 0}}, "perturbation.force", "greater than or equal to 0.000001"),
         ({"tension_max": [30, 30, 0.2, 30, 30, 30]}, "system", "cable 3 upper bound"),
         ({"tension_min": [0.5] * 5}, "tension_min", "one number or 6 (one per cable), got 5"),
         ({"max_thrust": 9.0}, "system", "drone 1 thrust 9.0 N does not exceed"),

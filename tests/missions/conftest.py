@@ -13,6 +13,7 @@ import pytest
 from flycrane.cable_system import CableSystem
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.statics import evaluate_statics
+from missions.flight_plan import FlightPlan, plan_flight
 from missions.options import MissionOptions
 from missions.tracks import Track, track_from_path
 from missions.waypoints import WaypointPlan, reduce_to_waypoints
@@ -50,6 +51,15 @@ def curved_track(system: CableSystem, space: ConfigurationSpace) -> Track:
 
 @pytest.fixture(scope="session")
 def curved_plan(system: CableSystem, curved_track: Track, feasible) -> WaypointPlan:
+    """The fewest waypoints whose straight legs keep the load feasible."""
     plan = reduce_to_waypoints(system, curved_track, feasible, MissionOptions())
+    assert plan.ok, plan.reason
+    return plan
+
+
+@pytest.fixture(scope="session")
+def curved_flight(system: CableSystem, curved_track: Track, feasible) -> FlightPlan:
+    """The flyable plan of the curved path: timed spline waypoints and their motion."""
+    plan = plan_flight(system, curved_track, feasible, MissionOptions())
     assert plan.ok, plan.reason
     return plan

@@ -1,5 +1,5 @@
 """Helpers shared by the mission tests, written independently of the modules under test:
-a first-order WGS84 conversion, ArduCopter's leg-timing rule, and hand-made plans."""
+a first-order WGS84 conversion and hand-made plans."""
 
 from __future__ import annotations
 
@@ -7,7 +7,12 @@ import numpy as np
 
 from flycrane.cable_system import CableSystem
 from flycrane.kinematics import drone_positions_from_configuration
+from missions.autopilots.ardupilot import ArduCopterSettings
+from missions.autopilots.spline import SpeedLimits
+from missions.builder import RELEASE_SEQ
+from missions.flight_plan import FlightPlan
 from missions.items import MavCmd
+from missions.motion import DroneMotion
 from missions.options import GeodeticOrigin
 from missions.waypoints import WaypointPlan
 
@@ -30,52 +35,6 @@ def approximate_geodetic(enu, origin: GeodeticOrigin):
     return lat, lon
 
 
-def encoded_leg_vectors(mission, origin: GeodeticOrigin):
-    """ENU displacements (L, 3) of the timed legs as an ArduPilot copter stores them:
-    coordinates of 1e-7 degree, altitudes truncated to whole centimetres (AP_Mission keeps
-    ``int32(z * 100)``); inverse of :func:`approximate_geodetic`."""
-    items = [mission.items[2], *nav_waypoints(mission)]
-    lat = np.array([i.x for i in items]) * 1e-7
-    lon = np.array([i.y for i in items]) * 1e-7
-    z = np.trunc(np.array([i.z for i in items]) * 100.0) / 100.0
-    lat0 = np.radians(origin.latitude)
-    w = 1 - WGS84_E2 * np.sin(lat0) ** 2
-    meridian = WGS84_A * (1 - WGS84_E2) / w**1.5
-    normal = WGS84_A / np.sqrt(w)
-    north = np.radians(lat - origin.latitude) * (meridian + origin.altitude)
-    east = np.radians(lon - origin.longitude) * (normal + origin.altitude) * np.cos(lat0)
-    return np.diff(np.stack([east, north, z], axis=1), axis=0)
-
-
-def nav_waypoints(mission):
-    """The timed NAV_WAYPOINTs: after home (seq 0), takeoff (1) and the start (2)."""
-    return [it for it in mission.items[3:] if it.command == MavCmd.NAV_WAYPOINT]
-
-
-def flown_leg_durations(mission, leg_vectors):
-    """Leg durations under ArduCopter's speed rule, from the mission's items in order.
-
-    ``leg_vectors`` (L, 3) are the drone's ENU displacements of the L timed legs.
-    """
-    limits = {1: None, 2: None, 3: None}  # ground, climb, descent [m/s]
-    durations = []
-    for item in mission.items[3:]:
-        if item.command == MavCmd.DO_CHANGE_SPEED:
-            assert item.param3 == -1.0  # throttle unchanged
-            limits[int(item.param1)] = item.param2
-        elif item.command == MavCmd.NAV_WAYPOINT:
-            delta = leg_vectors[len(durations)]
-            length = np.linalg.norm(delta)
-            horizontal, vertical = np.linalg.norm(delta[:2]) / length, abs(delta[2]) / length
-            candidates = []
-            if horizontal > 0:
-                candidates.append(limits[1] / horizontal)
-            if vertical > 0:
-                candidates.append(limits[2 if delta[2] > 0 else 3] / vertical)
-            durations.append(length / min(candidates))
-    return np.array(durations)
-
-
 def hand_made_plan(displacements, durations, start=(0.0, 0.0, 5.0)):
     """A WaypointPlan of a rigidly translated crane (hover attitude) through P offsets."""
     p = np.cumsum(np.vstack([start, displacements]), axis=0)
@@ -87,3 +46,35 @@ def hand_made_plan(displacements, durations, start=(0.0, 0.0, 5.0)):
         drones=drone_positions_from_configuration(CableSystem.from_spec(), q),
         max_platform_deviation=0.0, max_cable_length_error=0.0,
     )  # fmt: skip
+
+
+def hand_made_flight(displacements, limits, start=(0.0, 0.0, 5.0)):
+    """A FlightPlan of a rigidly translated crane (hover attitude) through P offsets, each
+    leg with the given SpeedLimits on every drone; times and motion are placeholders (the
+    mission builder reads the waypoints and limits only)."""
+    straight = hand_made_plan(displacements, [1.0] * len(displacements), start)
+    return FlightPlan(
+        ok=True, reason="", indices=straight.indices, time=straight.time, q=straight.q,
+        drones=straight.drones, limits=(tuple(limits),) * 3,
+        motion=DroneMotion.straight(straight.time, straight.drones),
+        vehicles=DroneMotion.straight(straight.time, straight.drones),
+        settings=ArduCopterSettings(), early=(), max_platform_deviation=0.0,
+        max_cable_length_error=0.0, max_tracking_deviation=0.0, track_time=straight.time,
+    )  # fmt: skip
+
+
+def applied_limits(mission, initial: SpeedLimits) -> list[SpeedLimits]:
+    """The limits in force when each spline leg starts, as ArduCopter applies the items
+    (design.md section 9): DO_CHANGE_SPEED type 1 ground, 2 climb, 3 descent; a ground speed
+    below 0.2 m/s is ignored; items run from the release on."""
+    limits = {1: initial.horizontal, 2: initial.up, 3: initial.down}
+    legs = []
+    for item in mission.items[RELEASE_SEQ:]:
+        if item.command == MavCmd.DO_CHANGE_SPEED:
+            assert item.param3 == -1.0  # throttle unchanged
+            kind, value = int(item.param1), item.param2
+            if value > 0 and not (kind == 1 and value < 0.2):
+                limits[kind] = value
+        elif item.command == MavCmd.NAV_SPLINE_WAYPOINT:
+            legs.append(SpeedLimits(limits[1], limits[2], limits[3]))
+    return legs

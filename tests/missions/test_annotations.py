@@ -24,10 +24,10 @@ def test_hover_annotations_are_the_worked_example_of_the_design(system):
     assert np.isfinite(a.cost).all() and a.cost[0] > 1.0
 
 
-def test_drone_thrusts_carry_the_whole_weight(system, curved_plan):
+def test_drone_thrusts_carry_the_whole_weight(system, curved_flight):
     """Force balance of the whole crane: the three nominal thrusts add up to the weight of
     the platform (1.5 kg) and the three drones (1 kg each), straight up, at every waypoint."""
-    a = annotate(system, curved_plan.time, curved_plan.q)
+    a = annotate(system, curved_flight.time, curved_flight.q)
     total = a.thrust.sum(axis=1)
     np.testing.assert_allclose(total, np.tile([0.0, 0.0, 4.5 * 9.81], (len(total), 1)), atol=1e-9)
     np.testing.assert_allclose(a.thrust_magnitude, np.linalg.norm(a.thrust, axis=-1))

@@ -1,171 +1,117 @@
-"""Per-drone MAVLink missions: structure, home, positions, altitudes, speeds, start barrier.
+"""Mission items against the flight plan they encode.
 
-Leg durations are recomputed here from the item list with ArduCopter's track-speed rule
-(AC_WPNav / SCurve ``kinematic_limit``: the speed along a leg is
-``min(ground_speed / horizontal_fraction, climb_or_descent_speed / vertical_fraction)``),
-walking the DO_CHANGE_SPEED items the way the autopilot keeps its limits. Positions are
-checked against a first-order conversion through the WGS84 radii of curvature. Both are in
-``tests/missions/helpers.py``, written without the modules under test.
+The speed items are read back with a DO_CHANGE_SPEED state machine written from
+ArduCopter's rules (:func:`tests.missions.helpers.applied_limits`), positions with a
+first-order WGS84 conversion (:func:`tests.missions.helpers.approximate_geodetic`).
 """
 
 from __future__ import annotations
 
-import time
-from datetime import UTC, datetime, timedelta, timezone
-
 import numpy as np
 import pytest
 
-from missions.builder import LegSpeeds, build_missions
+from missions.autopilots.spline import SpeedLimits
+from missions.builder import HOLD_SEQ, RELEASE_SEQ, build_missions
 from missions.items import MavCmd, MavFrame
 from missions.options import MissionOptions
-from tests.missions.helpers import (
-    approximate_geodetic,
-    encoded_leg_vectors,
-    flown_leg_durations,
-    hand_made_plan,
-    nav_waypoints,
-)
+from tests.missions.helpers import applied_limits, approximate_geodetic, hand_made_flight
 
-# 1 m legs of 10 s with slow, slightly different vertical components: 1.5 then 2.4 mm/s of
-# climb, then 2.0 then 2.8 mm/s of descent (a near-level carry, as when a load is levelled).
-NEAR_LEVEL = hand_made_plan(
-    [[1.0, 0.0, 0.015], [1.0, 0.0, 0.024], [1.0, 0.0, -0.020], [0.0, 1.0, -0.028]],
-    [10.0, 10.0, 10.0, 10.0],
-)
+OPTIONS = MissionOptions()
 
 
 @pytest.fixture(scope="module")
-def missions(curved_plan):
-    return build_missions(curved_plan, MissionOptions())
+def missions(curved_flight):
+    return build_missions(curved_flight, OPTIONS)
 
 
-def test_every_drone_has_the_same_structure_and_one_nav_waypoint_per_leg(curved_plan, missions):
-    assert [m.drone for m in missions] == [1, 2, 3]
+def test_every_drone_holds_at_the_start_then_flies_one_spline_leg_per_leg(curved_flight, missions):
+    legs = len(curved_flight.time) - 1
     for mission in missions:
-        items = mission.items
-        assert [it.seq for it in items] == list(range(len(items)))
-        assert items[0].command == MavCmd.NAV_WAYPOINT
-        assert items[1].command == MavCmd.NAV_TAKEOFF
-        assert items[2].command == MavCmd.NAV_WAYPOINT and items[2].param1 == 5.0
-        assert items[-1].command == MavCmd.NAV_LOITER_UNLIM
-        assert len(nav_waypoints(mission)) == len(curved_plan.time) - 1
-        middle = {it.command for it in items[3:-1]}
-        assert middle <= {MavCmd.NAV_WAYPOINT, MavCmd.DO_CHANGE_SPEED}
+        commands = [int(it.command) for it in mission.items]
+        assert commands[:3] == [MavCmd.NAV_WAYPOINT, MavCmd.NAV_TAKEOFF, MavCmd.NAV_LOITER_UNLIM]
+        assert commands[HOLD_SEQ] == MavCmd.NAV_LOITER_UNLIM and RELEASE_SEQ == HOLD_SEQ + 1
+        assert commands[-1] == MavCmd.NAV_LOITER_UNLIM
+        middle = commands[RELEASE_SEQ:-1]
+        assert set(middle) <= {MavCmd.DO_CHANGE_SPEED, MavCmd.NAV_SPLINE_WAYPOINT}
+        assert middle.count(MavCmd.NAV_SPLINE_WAYPOINT) == legs
+        assert middle[-1] == MavCmd.NAV_SPLINE_WAYPOINT
+        assert MavCmd.NAV_DELAY not in commands  # never next to a spline (builder docstring)
 
 
-def test_home_is_on_the_ground_below_each_drone_start(curved_plan, missions):
-    origin = MissionOptions().origin
+def test_speed_items_give_each_leg_its_planned_limits_and_nothing_more(curved_flight, missions):
+    initial = curved_flight.settings.initial_speeds
     for j, mission in enumerate(missions):
-        home, takeoff, start = mission.items[:3]
-        assert home.frame == MavFrame.GLOBAL_INT  # AMSL
-        assert home.z == pytest.approx(origin.altitude, abs=1e-4)
-        assert (home.x, home.y) == (takeoff.x, takeoff.y) == (start.x, start.y)
-        lat, lon = approximate_geodetic(curved_plan.drones[0, j], origin)
-        assert abs(home.x - lat * 1e7) <= 0.5 + 0.01
-        assert abs(home.y - lon * 1e7) <= 0.5 + 0.01
-        assert takeoff.z == start.z == pytest.approx(curved_plan.drones[0, j, 2])
+        assert applied_limits(mission, initial) == list(curved_flight.limits[j])
+        # every item changes a limit: none is redundant
+        state = {1: initial.horizontal, 2: initial.up, 3: initial.down}
+        for item in mission.items:
+            if item.command == MavCmd.DO_CHANGE_SPEED:
+                assert state[int(item.param1)] != item.param2
+                state[int(item.param1)] = item.param2
 
 
-def test_positions_are_the_planned_drone_positions_rounded_to_the_nearest_unit(
-    curved_plan, missions
-):
-    origin = MissionOptions().origin
-    errors = []
+def test_home_is_on_the_ground_below_each_drone_start(curved_flight, missions):
     for j, mission in enumerate(missions):
-        items = [mission.items[2], *nav_waypoints(mission)]
-        lat, lon = approximate_geodetic(curved_plan.drones[:, j], origin)
-        errors += [it.x - la * 1e7 for it, la in zip(items, lat, strict=True)]
-        errors += [it.y - lo * 1e7 for it, lo in zip(items, lon, strict=True)]
-        for item, z in zip(items, curved_plan.drones[:, j, 2], strict=True):
+        home = mission.items[0]
+        assert home.frame == MavFrame.GLOBAL_INT
+        assert home.z == pytest.approx(OPTIONS.origin.altitude, abs=1e-6)  # ground, AMSL
+        lat, lon = approximate_geodetic(curved_flight.drones[0, j], OPTIONS.origin)
+        assert abs(home.x - lat * 1e7) <= 0.51 and abs(home.y - lon * 1e7) <= 0.51
+
+
+def stored_centimetres(z: float) -> int:
+    """AP_Mission's ``Location::alt`` of a MISSION_ITEM_INT ``z``: ``packet.z * 100.0f``,
+    a float32 product converted to int32 (truncated)."""
+    return int(np.float32(z) * np.float32(100.0))
+
+
+def test_positions_are_the_plans_stored_waypoints(curved_flight, missions):
+    for j, mission in enumerate(missions):
+        located = [it for it in mission.items[1:] if it.command != MavCmd.DO_CHANGE_SPEED]
+        # takeoff and hold at the first waypoint, the splines, the final hold at the last
+        points = [
+            curved_flight.drones[0, j],
+            *curved_flight.drones[:, j],
+            curved_flight.drones[-1, j],
+        ]
+        assert len(located) == len(points)
+        for item, enu in zip(located, points, strict=True):
+            lat, lon = approximate_geodetic(enu, OPTIONS.origin)
+            assert abs(item.x - lat * 1e7) <= 0.51 and abs(item.y - lon * 1e7) <= 0.51
+            assert stored_centimetres(item.z) == round(enu[2] * 100)  # what the plan flies
             assert item.frame == MavFrame.GLOBAL_RELATIVE_ALT_INT
-            assert item.z == pytest.approx(z, abs=1e-9)
-            assert item.param2 == 0.2  # acceptance radius
-    # Nearest 1e-7 degree: never more than half a unit off (truncation would reach 1).
-    assert np.abs(errors).max() <= 0.5 + 0.01
 
 
-def test_amsl_altitudes_add_the_origin_altitude(curved_plan):
-    options = MissionOptions(altitude_frame="amsl")
-    for j, mission in enumerate(build_missions(curved_plan, options)):
-        items = [mission.items[1], mission.items[2], *nav_waypoints(mission)]
-        heights = curved_plan.drones[[0, *range(len(curved_plan.time))], j, 2]
-        for item, z in zip(items, heights, strict=True):
-            assert item.frame == MavFrame.GLOBAL_INT
-            assert item.z == pytest.approx(options.origin.altitude + z, abs=1e-5)
+def test_amsl_altitudes_add_the_origin_altitude(curved_flight):
+    (mission,) = build_missions(curved_flight, MissionOptions(altitude_frame="amsl"))[:1]
+    spline = next(it for it in mission.items if it.command == MavCmd.NAV_SPLINE_WAYPOINT)
+    assert spline.frame == MavFrame.GLOBAL_INT
+    assert stored_centimetres(spline.z) == round(
+        (OPTIONS.origin.altitude + curved_flight.drones[1, 0, 2]) * 100
+    )
 
 
-@pytest.mark.parametrize("which", ["curved", "near level"])
-def test_speed_changes_make_every_leg_last_its_planned_duration(curved_plan, which):
-    plan = curved_plan if which == "curved" else NEAR_LEVEL
-    planned = np.diff(plan.time)
-    options = MissionOptions()
-    for j, mission in enumerate(build_missions(plan, options)):
-        # The autopilot flies between the waypoints as encoded (rounded coordinates,
-        # centimetre altitudes), so the legs are measured there.
-        flown = flown_leg_durations(mission, encoded_leg_vectors(mission, options.origin))
-        # Within 0.1 %: a 10 s leg 10 ms early or late (speed items are not repeated for
-        # smaller changes).
-        np.testing.assert_allclose(flown, planned, rtol=1e-3, err_msg=f"drone {j + 1}")
+def test_land_at_the_end_when_asked(curved_flight):
+    for mission in build_missions(curved_flight, MissionOptions(end="land")):
+        assert mission.items[-1].command == MavCmd.NAV_LAND
 
 
-def test_a_change_of_direction_alone_does_not_repeat_speed_items():
-    # Same speeds on both legs, east then north: ground speed items only, and a second one
-    # only where rounding to 1e-7 degree makes the encoded legs differ by more than 0.1 %.
-    plan = hand_made_plan([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], [4.0, 4.0])
-    options = MissionOptions()
-    for mission in build_missions(plan, options):
+def test_a_limit_that_stays_is_not_sent_again():
+    """Three legs east at one ground speed: one DO_CHANGE_SPEED, before the first."""
+    east = SpeedLimits(0.3, 2.5, 1.5)
+    plan = hand_made_flight([[1.0, 0.0, 0.0]] * 3, [east] * 3)
+    for mission in build_missions(plan, OPTIONS):
         speeds = [it for it in mission.items if it.command == MavCmd.DO_CHANGE_SPEED]
-        lengths = np.linalg.norm(encoded_leg_vectors(mission, options.origin), axis=1)
-        differ = abs(lengths[1] - lengths[0]) > 1e-3 * lengths[1]
-        assert [it.param1 for it in speeds] == [1.0] * (1 + differ)
-        assert speeds[0].param2 == pytest.approx(lengths[0] / 4.0, rel=1e-5)
+        assert [(it.param1, it.param2) for it in speeds] == [(1.0, 0.3)]
+        assert mission.items[RELEASE_SEQ] is speeds[0] or mission.items[RELEASE_SEQ] == speeds[0]
 
 
-@pytest.mark.parametrize(
-    ("given", "hms"),
-    [
-        (datetime(2026, 5, 4, 14, 30, 15, tzinfo=UTC), (14, 30, 15)),
-        (datetime(2026, 5, 4, 14, 30, 15, tzinfo=timezone(timedelta(hours=2))), (12, 30, 15)),
-        (datetime(2026, 5, 4, 0, 10, 0, tzinfo=timezone(timedelta(hours=-5))), (5, 10, 0)),
-        ("2026-05-04T23:59:59-01:00", (0, 59, 59)),
-        (datetime(2026, 5, 4, 14, 30, 15), (14, 30, 15)),  # naive: taken as UTC
-    ],
-)
-def test_start_barrier_waits_until_the_utc_time_of_day(curved_plan, given, hms):
-    options = MissionOptions(start_time_utc=given)
-    for mission in build_missions(curved_plan, options):
-        delay = mission.items[3]
-        assert delay.command == MavCmd.NAV_DELAY and delay.frame == MavFrame.MISSION
-        assert (delay.param1, delay.param2, delay.param3, delay.param4) == (-1.0, *hms)
-
-
-@pytest.fixture
-def new_york_local_time(monkeypatch):
-    """Run with a local time zone far from UTC, so that naive times would show."""
-    monkeypatch.setenv("TZ", "America/New_York")
-    time.tzset()
-    yield
-    monkeypatch.undo()
-    time.tzset()
-
-
-@pytest.mark.usefixtures("new_york_local_time")
-def test_start_time_is_an_instant_in_utc_whatever_the_local_zone():
-    naive = MissionOptions(start_time_utc=datetime(2026, 5, 4, 14, 30, 15))
-    aware = MissionOptions(start_time_utc="2026-05-04T16:30:15+02:00")
-    epoch = (datetime(2026, 5, 4, 14, 30, 15) - datetime(1970, 1, 1)).total_seconds()
-    assert naive.start_time_utc.timestamp() == aware.start_time_utc.timestamp() == epoch
-
-
-def test_land_at_the_end_when_asked(curved_plan):
-    for mission in build_missions(curved_plan, MissionOptions(end="land")):
-        last = mission.items[-1]
-        assert last.command == MavCmd.NAV_LAND
-        assert (last.x, last.y) == (mission.items[-2].x, mission.items[-2].y)
-
-
-def test_slow_legs_are_the_horizontal_speeds_arducopter_ignores():
-    # 0.5 m in 10 s: 5 cm/s, below ArduCopter's 10 cm/s minimum; then 1 m in 4 s.
-    plan = hand_made_plan([[0.5, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [10.0, 4.0, 4.0])
-    assert LegSpeeds.of(plan).slow_legs() == [(1, 1), (2, 1), (3, 1)]
+def test_the_release_lands_on_the_first_legs_speed_items():
+    """MISSION_SET_CURRENT to RELEASE_SEQ must run the first leg's DO items (ArduCopter runs
+    the DO items from the new seq up to the next nav item; aimed at the spline, they would be
+    skipped)."""
+    plan = hand_made_flight([[1.0, 0.0, 0.0]], [SpeedLimits(0.3, 0.4, 1.5)])
+    for mission in build_missions(plan, OPTIONS):
+        first = mission.items[RELEASE_SEQ : RELEASE_SEQ + 2]
+        assert [int(it.command) for it in first] == [MavCmd.DO_CHANGE_SPEED] * 2
+        assert np.isclose(sorted(it.param2 for it in first), [0.3, 0.4]).all()

@@ -1,9 +1,11 @@
 """Mission files: golden ``.waypoints`` and ``.plan``, pymavlink's reader, JSON round trip.
 
 The golden files under ``golden/`` are the missions of a tiny fixed plan (hover at 5 m,
-1 m east in 4 s, 1 m up in 5 s). Besides the byte-for-byte comparison, their content is
-checked against values written by hand here (speeds, commands, frames, altitudes) and
-against a first-order WGS84 conversion, so the golden files are evidence, not snapshots.
+1 m east at a ground speed of 0.25 m/s, then 1 m up at a climb speed of 0.2 m/s, each
+limit binding on its leg and the others at ArduCopter's defaults). Besides the
+byte-for-byte comparison, their content is checked against values written by hand here
+(speeds, commands, frames, altitudes) and against a first-order WGS84 conversion, so the
+golden files are evidence, not snapshots.
 Regenerate them with ``FLYCRANE_UPDATE_GOLDEN=1`` only after checking the difference.
 """
 
@@ -11,35 +13,37 @@ from __future__ import annotations
 
 import json
 import os
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 import pytest
 from pymavlink import mavwp
 
+from missions.autopilots.spline import SpeedLimits
 from missions.builder import build_missions
 from missions.formats import dumps, mission_from_json, mission_json, qgc_plan, waypoints_text
 from missions.items import MavCmd, MavFrame
 from missions.options import MissionOptions
-from tests.missions.helpers import WGS84_A, WGS84_E2, approximate_geodetic, hand_made_plan
+from tests.missions.helpers import approximate_geodetic, hand_made_flight
 
 GOLDEN = Path(__file__).parent / "golden"
 UPDATE = os.environ.get("FLYCRANE_UPDATE_GOLDEN") == "1"
 
-TINY = hand_made_plan([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [4.0, 5.0])
+TINY_LIMITS = [SpeedLimits(0.25, 2.5, 1.5), SpeedLimits(5.0, 0.2, 1.5)]
+TINY = hand_made_flight([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], TINY_LIMITS)
 OPTIONS = MissionOptions()
 
 # Hand-written content of every drone's tiny mission: (command, file frame, param1, param2).
 TINY_ITEMS = [
     (16, 0, 0.0, 0.0),  # home, AMSL
     (22, 3, 0.0, 0.0),  # takeoff to the start altitude, relative
-    (16, 3, 5.0, 0.2),  # the start: hold 5 s, acceptance radius 0.2 m
-    (178, 2, 1.0, 0.25),  # ground speed: 1 m in 4 s (the encoded metre: see below)
-    (16, 3, 0.0, 0.2),
-    (178, 2, 2.0, 0.2),  # climb speed: 1 m in 5 s (the encoded metre: see below)
-    (16, 3, 0.0, 0.2),
-    (17, 3, 0.0, 0.0),  # loiter at the end
+    (17, 3, 0.0, 0.0),  # hold at the start until released
+    (178, 2, 1.0, 0.25),  # ground speed 0.25 m/s (ArduCopter's default WPNAV_SPEED before)
+    (82, 3, 0.0, 0.0),  # 1 m east
+    (178, 2, 1.0, 5.0),  # ground speed back to the generous default
+    (178, 2, 2.0, 0.2),  # climb speed 0.2 m/s
+    (82, 3, 0.0, 0.0),  # 1 m up
+    (17, 3, 0.0, 0.0),  # hold at the end
 ]
 
 
@@ -73,40 +77,28 @@ def test_golden_waypoints_file_says_what_the_plan_says(drone):
     assert lines[0] == "QGC WPL 110"
     rows = [line.split("\t") for line in lines[1:]]
     assert all(len(row) == 12 for row in rows)
-    assert [int(r[0]) for r in rows] == list(range(8))
-    assert [int(r[1]) for r in rows] == [1] + [0] * 7  # home is "current"
-    # Speeds are those of the legs as encoded (coordinates rounded to 1e-7 degree, about
-    # 1 cm): within 1 % of the planned 0.25 and 0.2 m/s, exactly the encoded metre / time.
+    assert [int(r[0]) for r in rows] == list(range(len(TINY_ITEMS)))
+    assert [int(r[1]) for r in rows] == [1] + [0] * (len(TINY_ITEMS) - 1)  # home: "current"
     assert [(int(r[3]), int(r[2]), float(r[4])) for r in rows] == [t[:3] for t in TINY_ITEMS]
     for row, expected in zip(rows, TINY_ITEMS, strict=True):
-        assert float(row[5]) == pytest.approx(expected[3], rel=1e-2 if expected[0] == 178 else 0)
-    east_row, up_row = rows[4], rows[6]
-    lat0 = np.radians(OPTIONS.origin.latitude)
-    w = 1 - WGS84_E2 * np.sin(lat0) ** 2
-    meridian, normal = WGS84_A * (1 - WGS84_E2) / w**1.5, WGS84_A / np.sqrt(w)
-    height = OPTIONS.origin.altitude
-    north_m, east_m = np.radians(
-        [float(east_row[8]) - float(rows[2][8]), float(east_row[9]) - float(rows[2][9])]
-    ) * [meridian + height, (normal + height) * np.cos(lat0)]
-    assert float(rows[3][5]) == pytest.approx(np.hypot(north_m, east_m) / 4.0, rel=1e-5)
-    assert float(rows[5][5]) == pytest.approx(
-        (np.trunc(float(up_row[10]) * 100) - np.trunc(float(east_row[10]) * 100)) / 100 / 5.0,
-        rel=1e-6,
-    )
+        assert float(row[5]) == pytest.approx(expected[3], rel=1e-7)
     assert all(float(r[6]) == (-1.0 if int(r[3]) == 178 else 0.0) for r in rows)
     assert all(int(r[11]) == 1 for r in rows)
     start, east, up = TINY.drones[:, drone - 1]
     np.testing.assert_allclose(east - start, [1, 0, 0], atol=1e-12)
     np.testing.assert_allclose(up - east, [0, 0, 1], atol=1e-12)
-    # home below the start, then start, start, east, up, up (loiter)
+    # home below the start, then start (takeoff, hold), east, up, up (hold)
     points = [start * [1, 1, 0], start, start, east, up, up]
     rows_with_position = [r for r in rows if int(r[3]) != 178]
     lat, lon = approximate_geodetic(np.array(points), OPTIONS.origin)
     for row, la, lo, point in zip(rows_with_position, lat, lon, points, strict=True):
         assert float(row[8]) == pytest.approx(la, abs=0.51e-7)
         assert float(row[9]) == pytest.approx(lo, abs=0.51e-7)
-        expected_z = OPTIONS.origin.altitude if row is rows[0] else point[2]
-        assert float(row[10]) == pytest.approx(expected_z, abs=1e-6)
+        if row is rows[0]:
+            assert float(row[10]) == pytest.approx(OPTIONS.origin.altitude, abs=1e-6)
+        else:  # the centimetre ArduPilot stores it as (int32 of float32 z times 100)
+            stored = int(np.float32(float(row[10])) * np.float32(100.0))
+            assert stored == round(point[2] * 100)
 
 
 def test_golden_plan_file_says_what_the_plan_says():
@@ -126,10 +118,9 @@ def test_golden_plan_file_says_what_the_plan_says():
     assert [(it["command"], it["frame"], it["params"][0]) for it in items] == [
         t[:3] for t in TINY_ITEMS[1:]
     ]
-    for it, expected in zip(items, TINY_ITEMS[1:], strict=True):  # speeds: encoded legs
-        tolerance = 1e-2 if it["command"] == 178 else 0
-        assert it["params"][1] == pytest.approx(expected[3], rel=tolerance)
-    assert [it["doJumpId"] for it in items] == list(range(1, 8))
+    for it, expected in zip(items, TINY_ITEMS[1:], strict=True):
+        assert it["params"][1] == pytest.approx(expected[3], rel=1e-7)
+    assert [it["doJumpId"] for it in items] == list(range(1, len(TINY_ITEMS)))
     for item in items:
         assert item["type"] == "SimpleItem" and item["autoContinue"] is True
         assert len(item["params"]) == 7
@@ -158,19 +149,16 @@ def assert_loaded_like(loader, mission):
         assert w.z == pytest.approx(item.z, abs=1e-6)
 
 
-@pytest.mark.parametrize("which", ["tiny", "curved", "curved amsl with barrier"])
+@pytest.mark.parametrize("which", ["tiny", "curved", "curved amsl"])
 def test_pymavlink_reads_back_every_item_of_the_waypoints_files(
-    tmp_path, tiny_missions, curved_plan, which
+    tmp_path, tiny_missions, curved_flight, which
 ):
     if which == "tiny":
         missions = tiny_missions
     else:
-        options = MissionOptions()
-        if which.endswith("barrier"):
-            options = MissionOptions(
-                altitude_frame="amsl", start_time_utc=datetime(2026, 5, 4, 9, 0, 0, tzinfo=UTC)
-            )
-        missions = build_missions(curved_plan, options)
+        amsl = which.endswith("amsl")
+        options = MissionOptions(altitude_frame="amsl") if amsl else MissionOptions()
+        missions = build_missions(curved_flight, options)
     for mission in missions:
         path = tmp_path / f"drone{mission.drone}.waypoints"
         path.write_text(waypoints_text(mission), encoding="utf-8")
@@ -179,13 +167,13 @@ def test_pymavlink_reads_back_every_item_of_the_waypoints_files(
         assert_loaded_like(loader, mission)
 
 
-@pytest.mark.parametrize("options", [
-    MissionOptions(),
-    MissionOptions(altitude_frame="amsl", end="land",
-                   start_time_utc=datetime(2026, 5, 4, 9, 0, 0, tzinfo=UTC)),
-], ids=["defaults", "amsl, land, barrier"])  # fmt: skip
-def test_mission_json_round_trips_every_field(curved_plan, options):
-    for mission in build_missions(curved_plan, options):
+@pytest.mark.parametrize(
+    "options",
+    [MissionOptions(), MissionOptions(altitude_frame="amsl", end="land")],
+    ids=["defaults", "amsl, land"],
+)
+def test_mission_json_round_trips_every_field(curved_flight, options):
+    for mission in build_missions(curved_flight, options):
         text = dumps(mission_json(mission))
         back = mission_from_json(json.loads(text))
         assert back == mission
@@ -193,8 +181,8 @@ def test_mission_json_round_trips_every_field(curved_plan, options):
         assert [int(it.frame) for it in back.items] == [int(it.frame) for it in mission.items]
 
 
-def test_plan_items_carry_the_mission_items(curved_plan):
-    for mission in build_missions(curved_plan, MissionOptions()):
+def test_plan_items_carry_the_mission_items(curved_flight):
+    for mission in build_missions(curved_flight, MissionOptions()):
         plan = json.loads(dumps(qgc_plan(mission, 0.5)))
         home, rest = mission.items[0], mission.items[1:]
         assert plan["mission"]["plannedHomePosition"][2] == home.z

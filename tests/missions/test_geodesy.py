@@ -8,7 +8,13 @@ from decimal import ROUND_HALF_UP, Decimal
 import numpy as np
 import pytest
 
-from missions.geodesy import degrees_to_int, enu_from_geodetic, geodetic_from_enu
+from missions.geodesy import (
+    ardupilot_altitude,
+    degrees_to_int,
+    enu_from_geodetic,
+    geodetic_from_enu,
+    mission_altitude,
+)
 from missions.options import GeodeticOrigin
 from tests.missions.helpers import WGS84_A, WGS84_E2
 
@@ -98,3 +104,15 @@ def test_enu_to_geodetic_and_back_is_the_identity(origin):
     lat0, lon0, alt0 = geodetic_from_enu(np.zeros(3), origin)
     assert (float(lat0), float(lon0)) == pytest.approx((origin.latitude, origin.longitude))
     assert float(alt0) == pytest.approx(origin.altitude, abs=1e-6)
+
+
+def test_every_centimetre_written_as_mission_altitude_is_stored_as_itself():
+    """Brute force over every centimetre from -1 km to 9 km (AMSL altitudes of real
+    places): ArduPilot's ``int32(float32(z) * 100.0f)`` gives back the centimetre, also from
+    a value a hair below it (the ENU round trip of a stored position)."""
+    centimetres = np.arange(-100_000, 900_001)
+    for wobble in (0.0, -1e-7, 1e-7):
+        z = mission_altitude(centimetres / 100.0 + wobble)
+        stored = (z.astype(np.float32) * np.float32(100.0)).astype(np.int32)
+        assert np.array_equal(stored, centimetres)
+    assert float(ardupilot_altitude(mission_altitude(6.7499995))) == 6.75

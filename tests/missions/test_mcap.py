@@ -38,14 +38,20 @@ MISSION_TOPICS = [f"/mission/drone{j}" for j in (1, 2, 3)]
 
 
 @pytest.fixture(scope="module")
-def log(system, curved_track, curved_plan, tmp_path_factory):
+def timed_track(curved_track, curved_flight):
+    """The dense plan on mission time, as the pipeline logs it."""
+    return curved_flight.retimed(curved_track)
+
+
+@pytest.fixture(scope="module")
+def log(system, timed_track, curved_flight, tmp_path_factory):
     options = MissionOptions()
-    missions = build_missions(curved_plan, options)
+    missions = build_missions(curved_flight, options)
     inputs = LogInputs(
         system=system,
         scene=load_scene("rescue")[0],
-        track=curved_track,
-        annotations=annotate(system, curved_plan.time, curved_plan.q),
+        track=timed_track,
+        annotations=annotate(system, curved_flight.time, curved_flight.q),
         missions=missions,
         options=options,
         start_ns=START_NS,
@@ -95,28 +101,28 @@ def test_every_channel_has_its_schema(log):
     assert json.loads(log["metadata"]["planner"]["json"]) == {"seed": 0}
 
 
-def test_message_counts_follow_the_samples_and_the_waypoints(log, curved_track, curved_plan):
-    samples = decimated_samples(list(curved_track.time), RATE)
+def test_message_counts_follow_the_samples_and_the_waypoints(log, timed_track, curved_flight):
+    samples = decimated_samples(list(timed_track.time), RATE)
     assert len(by_topic(log, "/tf")) == len(samples)
     assert len(by_topic(log, "/scene")) == len(samples) + 1  # the static scene first
     for topic in DRONE_TOPICS:
         assert len(by_topic(log, topic)) == len(samples)
     for topic in ANNOTATION_TOPICS:
         records = [json.loads(data) for _, data in by_topic(log, topic)]
-        assert [r["waypoint"] for r in records] == list(range(len(curved_plan.time)))
-        assert [r["time"] for r in records] == pytest.approx(list(curved_plan.time))
+        assert [r["waypoint"] for r in records] == list(range(len(curved_flight.time)))
+        assert [r["time"] for r in records] == pytest.approx(list(curved_flight.time))
     for topic in MISSION_TOPICS:
         assert len(by_topic(log, topic)) == 1
     tf_times = np.array([t for t, _ in by_topic(log, "/tf")])
-    expected = START_NS + np.round(curved_track.time[samples] * 1e9).astype(np.int64)
+    expected = START_NS + np.round(timed_track.time[samples] * 1e9).astype(np.int64)
     np.testing.assert_array_equal(tf_times, expected)
 
 
-def test_log_times_never_decrease_and_start_at_mission_start(log, curved_track):
+def test_log_times_never_decrease_and_start_at_mission_start(log, timed_track):
     times = [m.log_time for _, _, m in log["messages"]]
     assert times[0] == START_NS
     assert all(a <= b for a, b in itertools.pairwise(times))
-    assert times[-1] == START_NS + round(curved_track.duration * 1e9)
+    assert times[-1] == START_NS + round(timed_track.duration * 1e9)
     assert all(m.publish_time == m.log_time for _, _, m in log["messages"])
 
 
@@ -147,12 +153,12 @@ def world_points(primitive):
 
 
 @pytest.mark.parametrize("which", [0, 7, 33, -1])
-def test_scene_and_transform_show_the_planned_configuration(log, curved_track, which):
+def test_scene_and_transform_show_the_planned_configuration(log, timed_track, which):
     scenes = by_topic(log, "/scene")[1:]
     stamp, data = scenes[which]
-    k = int(np.argmin(np.abs(curved_track.time - (stamp - START_NS) / 1e9)))
-    assert abs(curved_track.time[k] - (stamp - START_NS) / 1e9) < 1e-9
-    q = curved_track.q[k]
+    k = int(np.argmin(np.abs(timed_track.time - (stamp - START_NS) / 1e9)))
+    assert abs(timed_track.time[k] - (stamp - START_NS) / 1e9) < 1e-9
+    q = timed_track.q[k]
     update = SceneUpdate()
     update.ParseFromString(data)
     (entity,) = update.entities
@@ -167,7 +173,7 @@ def test_scene_and_transform_show_the_planned_configuration(log, curved_track, w
     np.testing.assert_allclose(cables[:, 0], vertices[[0, 0, 1, 1, 2, 2]], atol=1e-9)
     drones = np.array([[s.pose.position.x, s.pose.position.y, s.pose.position.z]
                        for s in entity.spheres])  # fmt: skip
-    np.testing.assert_allclose(drones, curved_track.drones[k], atol=1e-9)
+    np.testing.assert_allclose(drones, timed_track.drones[k], atol=1e-9)
     np.testing.assert_allclose(cables[:, 1], drones[[0, 1, 1, 2, 2, 0]], atol=1e-9)
     assert all(s.size.x == pytest.approx(0.6) for s in entity.spheres)
     # the footbridge of the Rescue scene hangs 0.35 m below P along the platform normal
@@ -202,19 +208,19 @@ def test_static_scene_has_the_buildings_and_the_ground(log):
     assert len(boxes) == 3  # and the ground slab
 
 
-def test_drone_fixes_are_the_planned_positions_in_wgs84(log, curved_track):
-    samples = decimated_samples(list(curved_track.time), RATE)
+def test_drone_fixes_are_the_planned_positions_in_wgs84(log, timed_track):
+    samples = decimated_samples(list(timed_track.time), RATE)
     for j, topic in enumerate(DRONE_TOPICS):
         fixes = []
         for _, data in by_topic(log, topic):
             fix = LocationFix()
             fix.ParseFromString(data)
             fixes.append((fix.latitude, fix.longitude, fix.altitude))
-        lat, lon = approximate_geodetic(curved_track.drones[samples, j], MissionOptions().origin)
+        lat, lon = approximate_geodetic(timed_track.drones[samples, j], MissionOptions().origin)
         fixes = np.array(fixes)
         np.testing.assert_allclose(fixes[:, 0], lat, atol=1e-9)
         np.testing.assert_allclose(fixes[:, 1], lon, atol=1e-9)
-        np.testing.assert_allclose(fixes[:, 2], 488.0 + curved_track.drones[samples, j, 2],
+        np.testing.assert_allclose(fixes[:, 2], 488.0 + timed_track.drones[samples, j, 2],
                                    atol=1e-4)  # fmt: skip
 
 
@@ -227,9 +233,11 @@ from missions.builder import build_missions
 from missions.mcap_log import LogInputs, write_mcap
 from missions.options import MissionOptions
 from missions.tracks import Track
-from tests.missions.helpers import hand_made_plan
+from missions.autopilots.spline import SpeedLimits
+from tests.missions.helpers import hand_made_flight
 
-plan = hand_made_plan([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], [4.0, 5.0])
+plan = hand_made_flight([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+                        [SpeedLimits(0.25, 2.5, 1.5), SpeedLimits(5.0, 0.2, 1.5)])
 system, options = CableSystem.from_spec(), MissionOptions()
 write_mcap(sys.argv[1], LogInputs(
     system, load_scene("rescue")[0], Track(plan.time, plan.q, plan.drones),

@@ -1,8 +1,8 @@
 """The whole job on the default Rescue task, task resolution errors, and ``flycrane plan``.
 
-Artifacts are opened with their real readers (pymavlink's MAVWPLoader, json, the mcap
-reader); the missions are checked end to end against the scene's start and goal and
-against ArduCopter's leg-timing rule.
+Artifacts are opened with their real readers (pymavlink's MAVWPLoader and parameter
+reader, json, the mcap reader); the missions are checked end to end against the scene's
+start and goal, and their speed items against the limits the plan solved.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 from mcap.reader import make_reader
-from pymavlink import mavwp
+from pymavlink import mavparm, mavwp
 
 from flycrane.cable_system import CableSystem
 from flycrane.cli import main
@@ -21,16 +21,14 @@ from flycrane.kinematics import drone_positions_from_configuration
 from flycrane.planning.planners import PlannerOptions
 from flycrane.planning.validity import InvalidConfigurationError
 from flycrane.scene import load_scene
+from missions.autopilots.ardupilot import ArduCopterSettings
+from missions.autopilots.spline import SpeedLimits
 from missions.formats import mission_from_json
 from missions.items import MavCmd
 from missions.options import MissionOptions
 from missions.pipeline import run_task
 from missions.task import TaskSpec, resolve_task
-from tests.missions.helpers import (
-    approximate_geodetic,
-    encoded_leg_vectors,
-    flown_leg_durations,
-)
+from tests.missions.helpers import applied_limits, approximate_geodetic
 
 TASK = TaskSpec(planner=PlannerOptions(seed=0, time_budget=60))
 
@@ -46,8 +44,9 @@ def test_default_rescue_task_is_done_with_every_artifact(rescue):
     assert outcome.status == "done", outcome.reason
     assert outcome.planner_status == "exact_solution"
     expected = {"path.json", "tracks.json", "mission.mcap", "profile.png", "summary.json"}
+    expected |= {"task.json"}
     expected |= {f"drone{j}.{kind}" for j in (1, 2, 3) for kind in
-                 ("waypoints", "plan", "mission.json")}  # fmt: skip
+                 ("waypoints", "plan", "mission.json", "parm")}  # fmt: skip
     assert set(outcome.artifacts.values()) == expected
     for name in expected:
         assert (out / name).stat().st_size > 0, name
@@ -66,8 +65,9 @@ def test_rescue_files_load_with_their_readers_and_agree(rescue):
         count = loader.load(str(out / f"drone{j}.waypoints"))
         assert count == outcome.mission["items_per_drone"][j - 1]
         commands = [loader.wp(i).command for i in range(count)]
-        # home, the start and one NAV_WAYPOINT per timed waypoint after the first
-        assert commands.count(MavCmd.NAV_WAYPOINT) == waypoints + 1
+        # home, then one spline waypoint per leg
+        assert commands.count(MavCmd.NAV_WAYPOINT) == 1
+        assert commands.count(MavCmd.NAV_SPLINE_WAYPOINT) == waypoints - 1
         mission = mission_from_json(json.loads((out / f"drone{j}.mission.json").read_text()))
         assert [int(it.command) for it in mission.items] == commands
         plan = json.loads((out / f"drone{j}.plan").read_text(encoding="utf-8"))
@@ -83,25 +83,49 @@ def test_rescue_files_load_with_their_readers_and_agree(rescue):
     assert len(path["configurations"]) >= 2
 
 
-def test_rescue_missions_fly_from_the_scene_start_to_its_goal_on_time(rescue):
-    _, out = rescue
+def test_rescue_missions_hold_above_the_start_and_set_the_bridge_down_on_the_roofs(rescue):
+    """The default position-error model (RTK) keeps 8 cm from everything; the scene's start
+    (bridge 5 cm above the ground) is lifted by the take-off and its goal (5 cm above the
+    roofs) is reached by a set-down onto both buildings."""
+    outcome, out = rescue
     scene, _ = load_scene("rescue")
     system = CableSystem.from_spec(scene.system_spec())
-    ends = drone_positions_from_configuration(system, [scene.start, scene.goal])
-    tracks = json.loads((out / "tracks.json").read_text(encoding="utf-8"))
-    time = np.array(tracks["time"])
+    summary = outcome.mission
+    assert summary["obstacle_clearance"] == pytest.approx(0.08)
+    assert summary["lift_off"]["surfaces"] == ["ground"]
+    assert summary["set_down"]["surfaces"] == ["east building", "west building"]
+    lift = summary["lift_off"]["height"]
+    raised = np.array(scene.start) + [0, 0, lift, 0, 0, 0, 0, 0, 0]
+    ends = drone_positions_from_configuration(system, [raised, scene.goal])
     origin = MissionOptions().origin
     for j in (1, 2, 3):
         items = mission_from_json(json.loads((out / f"drone{j}.mission.json").read_text())).items
-        positions = [it for it in items if it.command == MavCmd.NAV_WAYPOINT][1:]
-        for item, enu in ((positions[0], ends[0][j - 1]), (positions[-1], ends[1][j - 1])):
+        hold, last = items[2], [it for it in items if it.command == MavCmd.NAV_SPLINE_WAYPOINT][-1]
+        assert hold.command == MavCmd.NAV_LOITER_UNLIM
+        for item, enu in ((hold, ends[0][j - 1]), (last, ends[1][j - 1])):
             lat, lon = approximate_geodetic(enu, origin)
             assert abs(item.x - lat * 1e7) <= 0.51 and abs(item.y - lon * 1e7) <= 0.51
-            assert item.z == pytest.approx(enu[2], abs=1e-6)
+            assert item.z == pytest.approx(enu[2], abs=0.01)  # stored in whole centimetres
+
+
+def test_rescue_speed_items_are_the_limits_the_plan_solved(rescue):
+    _, out = rescue
+    tracks = json.loads((out / "tracks.json").read_text(encoding="utf-8"))
+    initial = ArduCopterSettings().initial_speeds
+    for j in (1, 2, 3):
         mission = mission_from_json(json.loads((out / f"drone{j}.mission.json").read_text()))
-        # legs as the autopilot flies them: between the encoded waypoints
-        flown = flown_leg_durations(mission, encoded_leg_vectors(mission, origin))
-        np.testing.assert_allclose(flown, np.diff(time), rtol=1e-3, err_msg=f"drone {j}")
+        planned = [SpeedLimits(**limits) for limits in tracks["speed_limits"][j - 1]]
+        assert applied_limits(mission, initial) == planned
+
+
+def test_rescue_parameter_files_read_with_pymavlink_say_what_the_plan_assumes(rescue):
+    _, out = rescue
+    for j in (1, 2, 3):
+        read = mavparm.MAVParmDict()
+        read.load(str(out / f"drone{j}.parm"), use_excludes=False)
+        expected = ArduCopterSettings.for_acceleration(MissionOptions().autopilot_acceleration)
+        assert dict(read) == pytest.approx(expected.parameters())
+        assert "BARO_GND_TEMP" not in read  # never changed on a powered vehicle
 
 
 def test_a_start_in_collision_is_refused_naming_the_bodies():

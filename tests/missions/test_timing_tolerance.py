@@ -1,8 +1,9 @@
 """Timing tolerance: the reported limits are the edge between safe and unsafe flights.
 
 Flights with a late start or a mismatched speed are replayed with clock functions written
-here, through ``flight_is_safe`` and through an independent replay (``np.interp`` drones at
-0.01 s, direct kinematics, statics), five to ten times finer than the module's step.
+here, through ``flight_is_safe`` and through an independent replay (each drone's commanded
+positions, ``np.interp`` at 0.01 s on its own clock, direct kinematics, statics), five to
+ten times finer than the module's step.
 """
 
 from __future__ import annotations
@@ -39,40 +40,41 @@ def mismatched_speed(fraction, drone):
 
 def replay_is_safe(system, track, plan, clock, step=0.01):
     """The flight replayed without the module: drones hold their start until their clock
-    reaches 0 and their last waypoint after it, and fly straight legs in between."""
-    end = plan.time[-1]
+    reaches 0 and their last position after it, and follow their commanded motion between."""
+    end = plan.duration
     t = np.arange(0.0, 2 * end + step, step)
     local = np.clip(clock(t), 0.0, end)
+    motion = plan.motion
     drones = np.stack(
-        [np.stack([np.interp(local[:, j], plan.time, plan.drones[:, j, c]) for c in range(3)],
+        [np.stack([np.interp(local[:, j], motion.time, motion.drones[:, j, c]) for c in range(3)],
                   axis=-1) for j in range(3)],
         axis=1,
     )  # fmt: skip
     dense = track.q.copy()
     dense[:, ANGLES] = np.unwrap(dense[:, ANGLES], axis=0)
-    mean = local.mean(axis=1)
+    mean = np.interp(local.mean(axis=1), plan.time, plan.track_time)
     initial = np.stack([np.interp(mean, track.time, dense[:, c]) for c in range(9)], axis=1)
     rebuilt = configuration_from_drone_positions(system, drones, initial=initial)
     return bool(np.all(rebuilt.converged & evaluate_statics(system, rebuilt.q).feasible))
 
 
 @pytest.fixture(scope="module")
-def tolerance(system, curved_track, curved_plan, feasible):
-    return timing_tolerance(system, curved_track, curved_plan, feasible, OPTIONS)
+def tolerance(system, curved_track, curved_flight, feasible):
+    return timing_tolerance(system, curved_track, curved_flight, feasible, OPTIONS)
 
 
 def test_the_plan_as_timed_is_safe_and_a_large_offset_is_not(
-    system, curved_track, curved_plan, feasible
+    system, curved_track, curved_flight, feasible
 ):
     on_time = late_start(0.0, ())
-    assert flight_is_safe(system, curved_track, curved_plan, feasible, on_time,
+    assert flight_is_safe(system, curved_track, curved_flight, feasible, on_time,
                           OPTIONS.check_resolution)  # fmt: skip
-    assert replay_is_safe(system, curved_track, curved_plan, on_time)
-    assert not replay_is_safe(system, curved_track, curved_plan, late_start(3.0, (0,)))
+    assert replay_is_safe(system, curved_track, curved_flight, on_time)
+    assert not replay_is_safe(system, curved_track, curved_flight, late_start(3.0, (0,)))
 
 
 def test_start_offset_just_below_the_tolerance_is_safe_and_just_above_is_not(
-    system, curved_track, curved_plan, feasible, tolerance
+    system, curved_track, curved_flight, feasible, tolerance
 ):
     offset = tolerance.start_offset
     assert 0.0 < offset < tolerance.searched_offset
@@ -81,17 +83,17 @@ def test_start_offset_just_below_the_tolerance_is_safe_and_just_above_is_not(
     step = OPTIONS.check_resolution
     for late in CASES:  # every case survives the reported offset...
         clock = late_start(offset, late)
-        assert flight_is_safe(system, curved_track, curved_plan, feasible, clock, step), late
-        assert replay_is_safe(system, curved_track, curved_plan, clock), late
+        assert flight_is_safe(system, curved_track, curved_flight, feasible, clock, step), late
+        assert replay_is_safe(system, curved_track, curved_flight, clock), late
     # ...and the named one fails just beyond it (one bisection bracket, 5 ms, further)
     above = offset + 2 * TOLERANCE_RESOLUTION * tolerance.searched_offset
     clock = late_start(above, named)
-    assert not flight_is_safe(system, curved_track, curved_plan, feasible, clock, step)
-    assert not replay_is_safe(system, curved_track, curved_plan, clock)
+    assert not flight_is_safe(system, curved_track, curved_flight, feasible, clock, step)
+    assert not replay_is_safe(system, curved_track, curved_flight, clock)
 
 
 def test_speed_mismatch_just_below_the_tolerance_is_safe_and_just_above_is_not(
-    system, curved_track, curved_plan, feasible, tolerance
+    system, curved_track, curved_flight, feasible, tolerance
 ):
     mismatch = tolerance.speed_mismatch
     assert 0.0 < mismatch < tolerance.searched_mismatch
@@ -103,16 +105,16 @@ def test_speed_mismatch_just_below_the_tolerance_is_safe_and_just_above_is_not(
     for j in range(3):
         for s in (1.0, -1.0):
             clock = mismatched_speed(s * mismatch, j)
-            assert flight_is_safe(system, curved_track, curved_plan, feasible, clock, step)
-            assert replay_is_safe(system, curved_track, curved_plan, clock)
+            assert flight_is_safe(system, curved_track, curved_flight, feasible, clock, step)
+            assert replay_is_safe(system, curved_track, curved_flight, clock)
     above = mismatch + 2 * TOLERANCE_RESOLUTION * tolerance.searched_mismatch
     clock = mismatched_speed(sign * above, int(drone) - 1)
-    assert not flight_is_safe(system, curved_track, curved_plan, feasible, clock, step)
-    assert not replay_is_safe(system, curved_track, curved_plan, clock)
+    assert not flight_is_safe(system, curved_track, curved_flight, feasible, clock, step)
+    assert not replay_is_safe(system, curved_track, curved_flight, clock)
 
 
 def test_more_statics_margin_never_gives_less_tolerance(
-    system, curved_track, curved_plan, tolerance
+    system, curved_track, curved_flight, tolerance
 ):
     """A smaller perturbation ellipsoid and wider tension and thrust limits make every
     feasible configuration of the default system feasible (nested feasible sets), so the
@@ -125,7 +127,7 @@ def test_more_statics_margin_never_gives_less_tolerance(
     assert not statics_validity(CableSystem.from_spec(SystemSpec(platform_mass=1.0)))(
         CURVED_PATH
     ).all()
-    more = timing_tolerance(roomy, curved_track, curved_plan, statics_validity(roomy), OPTIONS)
+    more = timing_tolerance(roomy, curved_track, curved_flight, statics_validity(roomy), OPTIONS)
     assert more.start_offset >= tolerance.start_offset
     assert more.speed_mismatch >= tolerance.speed_mismatch
     assert (more.start_offset, more.speed_mismatch) != (tolerance.start_offset,

@@ -13,11 +13,14 @@ from service.app import create_app
 from service.settings import Settings
 
 FINISHED = {"done", "failed", "cancelled"}
+#: The Host header of starlette's TestClient.
+TEST_HOST = "testserver"
 
 
 @contextmanager
 def running_service(data_dir: Path, **settings) -> Iterator[TestClient]:
     """The service with its lifespan (database, worker pool, resumption) running."""
+    settings.setdefault("allowed_hosts", (TEST_HOST,))
     app = create_app(Settings(data_dir=data_dir, workers=1, **settings))
     with TestClient(app) as client:
         yield client

@@ -99,15 +99,56 @@ def test_presets_health_and_metrics(client):
     assert client.get("/openapi.json").json()["paths"]["/v1/tasks"]["post"]
 
 
-def test_token_guards_mutating_endpoints(tmp_path):
-    with running_service(tmp_path, api_token="s3cret") as client:
+TOKEN = "a-long-enough-token-0123"
+READ_TOKEN = "a-read-only-token-456789"
+
+
+def test_tokens_guard_every_task_endpoint(tmp_path):
+    """With a token set, writes need it and reads need it or the read token (issue 10,
+    item 5: reads, missions with positions and MCAP logs included, were open)."""
+    with running_service(tmp_path, api_token=TOKEN, read_token=READ_TOKEN) as client:
+        writer = {"Authorization": f"Bearer {TOKEN}"}
+        reader = {"Authorization": f"Bearer {READ_TOKEN}"}
         assert client.post("/v1/tasks", json={"scene": "atlantis"}).status_code == 401
         wrong = {"Authorization": "Bearer guess"}
         assert client.post("/v1/tasks", json={}, headers=wrong).status_code == 401
+        assert client.post("/v1/tasks", json={}, headers=reader).status_code == 401
         assert client.delete("/v1/tasks/x").status_code == 401
-        good = {"Authorization": "Bearer s3cret"}
-        assert client.post("/v1/tasks", json={"scene": "atlantis"}, headers=good).status_code == 422
-        assert client.get("/v1/tasks").status_code == 200  # reading needs no token
         assert (
-            client.post("/v1/statics", json={"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1]]}).status_code == 200
+            client.post("/v1/tasks", json={"scene": "atlantis"}, headers=writer).status_code == 422
         )
+        for path in ("/v1/tasks", "/v1/tasks/x", "/v1/tasks/x/artifacts/summary.json",
+                     "/v1/tasks/x/bundle.zip", "/v1/viewer", "/v1/tasks/x/view.json"):  # fmt: skip
+            response = client.get(path)
+            assert response.status_code == 401, path
+            assert response.headers["www-authenticate"] == "Bearer"
+            assert client.get(path, headers=reader).status_code in (200, 404), path
+            assert client.get(path, headers=writer).status_code in (200, 404), path
+        # What carries no task data stays open: liveness, metrics, presets.
+        for path in ("/healthz", "/metrics", "/v1/presets/scenes"):
+            assert client.get(path).status_code == 200, path
+
+
+def test_public_reads_open_reading_only(tmp_path):
+    with running_service(tmp_path, api_token=TOKEN, public_reads=True) as client:
+        assert client.get("/v1/tasks").status_code == 200
+        assert client.post("/v1/tasks", json={}).status_code == 401
+
+
+@pytest.mark.parametrize(
+    ("settings", "field"),
+    [
+        ({"api_token": ""}, "api_token"),
+        ({"api_token": "   "}, "api_token"),
+        ({"api_token": "short"}, "api_token"),
+        ({"read_token": READ_TOKEN}, "read_token needs api_token"),
+    ],
+)
+def test_an_empty_or_weak_token_is_refused_not_ignored(tmp_path, settings, field):
+    from pydantic import ValidationError
+
+    from service.settings import Settings
+
+    with pytest.raises(ValidationError) as info:
+        Settings(data_dir=tmp_path, **settings)
+    assert field in str(info.value)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import json
+import socket
 import time
 import tomllib
 import zipfile
@@ -16,8 +17,9 @@ from pymavlink import mavwp
 
 from flycrane.scene import SCENES_DIR
 from missions.formats import mission_from_json
-from missions.mavlink import MockAutopilot, MockConfig, SimClock
-from missions.mavlink.mock_flight import Geodetic
+from missions.mavlink import Fleet, MockAutopilot, MockConfig, RetryPolicy, SimClock
+from missions.mavlink.mock_config import Geodetic
+from missions.parameter_file import parse_parameter_file
 from tests.missions.mavlink.conftest import free_udp_port
 from tests.service.conftest import running_service, wait_finished, wait_status
 
@@ -51,8 +53,13 @@ def test_rescue_is_planned_and_every_artifact_is_served(done, tmp_path):
         "mission.mcap",
         "profile.png",
         "summary.json",
+        "task.json",
         "bundle.zip",
-    } | {f"drone{k}.{ext}" for k in (1, 2, 3) for ext in ("waypoints", "plan", "mission.json")}
+    } | {
+        f"drone{k}.{ext}"
+        for k in (1, 2, 3)
+        for ext in ("waypoints", "plan", "mission.json", "parm")
+    }
     assert names == expected
     for k in (1, 2, 3):
         text = client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.waypoints").text
@@ -70,7 +77,7 @@ def test_rescue_is_planned_and_every_artifact_is_served(done, tmp_path):
     topics = {channel.topic for channel in reader.get_summary().channels.values()}
     assert {"/scene", "/tf", "/drone1/fix", "/annotations/tensions"} <= topics
     bundle = zipfile.ZipFile(io.BytesIO(client.get(f"/v1/tasks/{task['id']}/bundle.zip").content))
-    assert set(bundle.namelist()) == expected - {"bundle.zip"}
+    assert set(bundle.namelist()) == expected - {"bundle.zip"} | {"view.html"}
     assert client.get(f"/v1/tasks/{task['id']}/artifacts/..%2Fflycrane.db").status_code == 404
 
 
@@ -82,20 +89,52 @@ def test_listing_pages_and_filters(done):
     assert client.get("/v1/tasks", params={"status": "bogus"}).status_code == 422
 
 
-def test_upload_to_three_mock_autopilots_through_the_api(done):
-    client, task = done
+def mock_vehicles(client, task: dict, drones, with_plan_parameters=False) -> tuple[list, list[str]]:
+    """A started mock autopilot per drone (1-based), homed where its mission's seq 0 is,
+    booted with ArduCopter's defaults or with the drone's .parm loaded; stop them when done."""
     clock = SimClock(speedup=5.0)
     mocks, addresses = [], []
-    for k in (1, 2, 3):
+    for k in drones:
         stored = mission_from_json(
             client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.mission.json").json()
         )
         home = stored.items[0]
         port = free_udp_port()
-        config = MockConfig(system_id=k, home=Geodetic(home.x * 1e-7, home.y * 1e-7, home.z))
+        parameters = (
+            parse_parameter_file(client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.parm").text)
+            if with_plan_parameters
+            else {}
+        )
+        config = MockConfig(
+            system_id=k,
+            home=Geodetic(home.x * 1e-7, home.y * 1e-7, home.z),
+            parameters=parameters,
+        )
         mocks.append(MockAutopilot(f"udpin:127.0.0.1:{port}", config, clock).start())
         addresses.append(f"udpout:127.0.0.1:{port}")
+    return mocks, addresses
+
+
+def test_upload_to_three_mock_autopilots_through_the_api(done):
+    client, task = done
+    mocks, addresses = mock_vehicles(client, task, (1, 2, 3))
     try:
+        # fresh vehicles have ArduCopter's defaults, not the plan's: uploaded, but reported
+        response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": addresses})
+        assert response.status_code == 409, response.text
+        for vehicle in response.json()["vehicles"]:
+            assert not vehicle["ok"] and "uploaded and verified" in vehicle["detail"]
+            differ = {d["name"]: (d["expected"], d["found"])
+                      for d in vehicle["parameter_differences"]}  # fmt: skip
+            assert differ["WPNAV_ACCEL"] == (200.0, 250.0)  # ArduCopter 4.5's default: 250
+            assert "WPNAV_ACCEL should be 200, the vehicle has 250" in vehicle["detail"]
+        # the user loads each drone's .parm (as a ground station would), and uploads again
+        parameters = [
+            parse_parameter_file(client.get(f"/v1/tasks/{task['id']}/artifacts/drone{k}.parm").text)
+            for k in (1, 2, 3)
+        ]
+        with Fleet.connect(addresses, RetryPolicy(request_timeout_s=0.5)) as fleet:
+            fleet.set_parameters(parameters)
         response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": addresses})
         assert response.status_code == 200, response.text
         assert response.json()["ok"] and all(v["ok"] for v in response.json()["vehicles"])
@@ -110,6 +149,43 @@ def test_upload_to_three_mock_autopilots_through_the_api(done):
     finally:
         for mock in mocks:
             mock.stop()
+
+
+def test_each_vehicle_reports_its_own_outcome(done):
+    """Issue 10, item 7: drone 2's address cannot even be opened (its port is taken); drones
+    1 and 3 still get their missions, and only drone 2 reports the error."""
+    client, task = done
+    mocks, addresses = mock_vehicles(client, task, (1, 3), with_plan_parameters=True)
+    taken = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    taken.bind(("127.0.0.1", 0))
+    busy = f"udpin:127.0.0.1:{taken.getsockname()[1]}"
+    try:
+        vehicles = [addresses[0], busy, addresses[1]]
+        response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": vehicles})
+        assert response.status_code == 502, response.text
+        outcome = {v["drone"]: v for v in response.json()["vehicles"]}
+        assert outcome[1]["ok"] and outcome[3]["ok"], outcome
+        assert not outcome[2]["ok"] and "in use" in outcome[2]["detail"], outcome
+        assert outcome[2]["vehicle"] == busy
+        assert all(len(mock.mission) > 1 for mock in mocks)
+    finally:
+        taken.close()
+        for mock in mocks:
+            mock.stop()
+
+
+def test_one_vehicle_given_twice_is_refused(done):
+    client, task = done
+    mocks, addresses = mock_vehicles(client, task, (1,))
+    try:
+        same = [addresses[0], addresses[0], addresses[0].replace("udpout:", "udp:")]
+        response = client.post(f"/v1/tasks/{task['id']}/upload", json={"vehicles": same})
+        assert response.status_code == 422, response.text
+        locations = [d["loc"] for d in response.json()["detail"]]
+        assert locations == [["body", "vehicles[1]"], ["body", "vehicles[2]"]]
+        assert len(mocks[0].mission) <= 1  # nothing was sent to it
+    finally:
+        mocks[0].stop()
 
 
 def test_upload_refusals(done):
@@ -164,8 +240,11 @@ def test_goal_as_a_platform_pose_gets_the_alphas_of_least_cost(tmp_path):
         assert accepted.status_code == 202, accepted.text
         task = wait_finished(client, accepted.json()["id"])
         assert task["status"] == "done", task["error"]
-        path = client.get(f"/v1/tasks/{task['id']}/artifacts/path.json").json()
-        goal = path["configurations"][-1]
+        # the goal lies within the RTK clearance of the roofs: the plan ends above it and
+        # the mission sets the bridge down on it
+        set_down = task["result"]["mission"]["set_down"]
+        assert set_down["surfaces"] == ["east building", "west building"]
+        goal = set_down["low"]
     # Independent check: no alpha triple of a fine grid around the chosen one is both valid
     # and cheaper (the chosen alphas are the least-cost valid ones up to the grid spacing).
     alphas = np.array(goal[6:])
@@ -178,15 +257,17 @@ def test_goal_as_a_platform_pose_gets_the_alphas_of_least_cost(tmp_path):
     assert goal[:6] == pytest.approx([0.0, 0.0, 8.45, 0.0, 0.0, 0.0])
 
 
-def test_tasks_survive_a_restart(done, data_dir):
-    _, task = done
-    # A second instance on the same data directory serves the finished task and its files,
-    # and a task that was queued when the first stopped is resumed and completed.
-    with running_service(data_dir) as client:
+def test_tasks_survive_a_restart(tmp_path):
+    # A second instance on the same data directory (once the first has stopped: one server
+    # per directory) serves the finished task and its files, and a task that was queued
+    # when the first stopped is resumed and completed.
+    with running_service(tmp_path) as client:
+        accepted = client.post("/v1/tasks", json=RESCUE).json()["id"]
+        assert wait_finished(client, accepted)["status"] == "done"
         queued = client.post("/v1/tasks", json={**RESCUE, "name": "interrupted"}).json()["id"]
-    with running_service(data_dir) as client:
-        assert client.get(f"/v1/tasks/{task['id']}").json()["status"] == "done"
-        summary = client.get(f"/v1/tasks/{task['id']}/artifacts/summary.json").json()
+    with running_service(tmp_path) as client:
+        assert client.get(f"/v1/tasks/{accepted}").json()["status"] == "done"
+        summary = client.get(f"/v1/tasks/{accepted}/artifacts/summary.json").json()
         assert summary["status"] == "done"
         resumed = wait_finished(client, queued)
         assert resumed["status"] == "done", resumed["error"]

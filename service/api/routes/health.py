@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 from fastapi import APIRouter, Depends, Response
+from fastapi.responses import JSONResponse
 from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
+from sqlalchemy import text
+from sqlalchemy.exc import SQLAlchemyError
 
 from service.deps import ServiceState, get_state
 from service.schemas import Health
@@ -11,11 +14,41 @@ from service.schemas import Health
 router = APIRouter(tags=["health"])
 
 
-@router.get("/healthz", response_model=Health)
-def healthz(state: ServiceState = Depends(get_state)) -> Health:
-    return Health(status="ok", tasks_in_flight=state.jobs.in_flight, workers=state.settings.workers)
+@router.get(
+    "/healthz",
+    response_model=Health,
+    responses={503: {"model": Health, "description": "the service cannot run tasks now"}},
+)
+def healthz(state: ServiceState = Depends(get_state)) -> Health | JSONResponse:
+    """Whether the service can take and run tasks: its database answers and its worker pool
+    works (a pool broken by a dead worker is replaced; one that cannot be is reported)."""
+    problems = []
+    if not state.jobs.healthy:
+        problems.append("no usable worker pool")
+    try:
+        with state.store.engine.connect() as connection:
+            connection.execute(text("SELECT 1"))
+    except SQLAlchemyError as error:
+        problems.append(f"database unreachable: {type(error).__name__}")
+    health = Health(
+        status="unavailable" if problems else "ok",
+        problems=problems,
+        tasks_in_flight=state.jobs.in_flight,
+        workers=state.settings.workers,
+        replaced_pools=state.jobs.replaced_pools,
+    )
+    if problems:
+        return JSONResponse(health.model_dump(), status_code=503)
+    return health
 
 
-@router.get("/metrics")
+@router.get(
+    "/metrics",
+    response_class=Response,
+    responses={
+        200: {"content": {CONTENT_TYPE_LATEST.split(";")[0]: {"schema": {"type": "string"}}}}
+    },
+)
 def metrics(state: ServiceState = Depends(get_state)) -> Response:
+    """Prometheus text format: tasks per status, planning times, submissions."""
     return Response(generate_latest(state.metrics.registry), media_type=CONTENT_TYPE_LATEST)

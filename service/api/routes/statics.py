@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Depends
 
 from flycrane.cable_system import CableSystem
 from flycrane.statics import evaluate_statics
 from flycrane.summary import statics_summary
 from flycrane.system import system_preset
+from service.deps import require_reader
+from service.errors import error_responses
 from service.schemas import StaticsCreate
 
 router = APIRouter(prefix="/v1/statics", tags=["statics"])
 
 
-@router.post("")
+@router.post("", dependencies=[Depends(require_reader)], responses=error_responses(401, 413))
 def statics(body: StaticsCreate) -> dict:
     """Tensions, tension ranges, thrusts, margins, cost and violated constraints of each q."""
     spec = system_preset(body.system) if isinstance(body.system, str) else body.system

@@ -12,8 +12,9 @@ import pytest
 
 from missions.items import DroneMission, MavCmd, MavFrame, MissionItem
 from missions.mavlink.mock_autopilot import MockAutopilot, MockConfig
-from missions.mavlink.mock_flight import Geodetic, SimClock
+from missions.mavlink.mock_config import Geodetic
 from missions.mavlink.policy import RetryPolicy
+from missions.mavlink.sim_clock import SimClock
 
 HOME = Geodetic(47.397742, 8.545594, 488.0)
 

@@ -23,8 +23,8 @@ from missions.mavlink.messages import (
     mission_request_list,
 )
 from missions.mavlink.mock_autopilot import MockConfig
-from missions.mavlink.mock_flight import SimClock
 from missions.mavlink.policy import RetryPolicy
+from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.transport import VehicleLink
 from missions.mavlink.upload import Verification, upload_and_verify
 

@@ -17,8 +17,10 @@ from missions.mavlink.errors import CommandRejectedError
 from missions.mavlink.fleet import Fleet
 from missions.mavlink.messages import mission_set_current
 from missions.mavlink.mock_autopilot import MockConfig
-from missions.mavlink.mock_flight import Imperfections, SimClock, seconds_until_utc
+from missions.mavlink.mock_config import Imperfections
+from missions.mavlink.mock_flight import seconds_until_utc
 from missions.mavlink.policy import RetryPolicy
+from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.transfer import download_mission
 from missions.mavlink.transport import VehicleLink
 

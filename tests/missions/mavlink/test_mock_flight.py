@@ -9,7 +9,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from missions.items import MavCmd, MavFrame
-from missions.mavlink.mock_flight import Dynamics, Imperfections, KinematicFlight, SpeedProfile
+from missions.mavlink.mock_config import Dynamics, Imperfections
+from missions.mavlink.mock_flight import KinematicFlight
+from missions.mavlink.mock_straight import SpeedProfile
 
 from .conftest import HOME
 from .test_flight import home_item, item

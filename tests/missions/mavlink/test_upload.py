@@ -11,9 +11,9 @@ import pytest
 from missions.items import MavCmd, MavFrame, MissionItem
 from missions.mavlink.errors import FleetError, MissionTransferError, MissionVerificationError
 from missions.mavlink.fleet import Fleet, upload_to_vehicles
-from missions.mavlink.messages import ardupilot_readback, as_sent, float32
+from missions.mavlink.messages import ardupilot_readback, as_sent, float32, item_difference
 from missions.mavlink.mock_autopilot import MockConfig
-from missions.mavlink.mock_flight import SimClock
+from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.transfer import download_mission
 from missions.mavlink.transport import VehicleLink
 from missions.mavlink.upload import Verification, upload_and_verify, verify_mission
@@ -149,3 +149,20 @@ def test_ardupilot_verification_accepts_what_arducopter_stores():
     with pytest.raises(MissionVerificationError) as error:
         verify_mission("v", sent, back, Verification.ARDUPILOT)
     assert (error.value.seq, error.value.field) == (3, "z")
+
+
+def test_do_items_read_back_in_frame_global_and_the_upload_verifies(spawn_mock, fast_policy):
+    """ArduCopter 4.5.7 returns a DO command sent in frame MISSION in frame GLOBAL (0);
+    the mock too, so that the verification takes the same path against both."""
+    mission = waypoint_mission(1, 2)
+    speed = MissionItem(4, MavFrame.MISSION, MavCmd.DO_CHANGE_SPEED, param1=1, param2=0.5)
+    mission = type(mission)(1, (*mission.items, speed))
+    mock, address = spawn_mock()
+    with VehicleLink(address, fast_policy) as link:
+        link.wait_heartbeat()
+        upload_and_verify(link, mission, fast_policy)
+        back = download_mission(link, fast_policy)
+    assert back[4].frame == MavFrame.GLOBAL and mock.mission[4].frame == MavFrame.GLOBAL
+    assert back[4].command == MavCmd.DO_CHANGE_SPEED and back[4].param2 == 0.5
+    # read back differently from what was sent, accepted as what ArduCopter stores
+    assert item_difference(speed, back[4]) == "frame"

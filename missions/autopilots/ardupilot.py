@@ -1,0 +1,155 @@
+"""What ArduCopter (4.5) does with our missions, and the parameters the plan assumes.
+
+Gathered in one place, each with the reason and where it was measured or read (design.md
+section 9; ``docs/missions.md`` "What ArduCopter does"):
+
+- **Timed legs are spline waypoints** (NAV_SPLINE_WAYPOINT). A straight NAV_WAYPOINT leg
+  is an S-curve built when the *previous* waypoint starts, with the speed in force then: a
+  DO_CHANGE_SPEED before a leg reaches it one leg late and only partly (short legs keep the
+  old speed), which is what stretched our first SITL flights to 1.2x and 2.2x the plan. A
+  spline leg reads its speed limits at every step, so each leg flies at its own speed
+  (:mod:`missions.autopilots.spline` models it step by step).
+- **Start**: takeoff to the start, hold there in NAV_LOITER_UNLIM, released by the ground
+  station with MISSION_SET_CURRENT to the item after the hold, sent to the three back to
+  back: the take-offs lift 0.27-0.41 s apart and any hold timer runs from each drone's own
+  arrival, but a release reaches all three within a millisecond.
+- **Speeds**: DO_CHANGE_SPEED ground (param1 1), climb (2) and descent (3) speeds; a ground
+  speed below 20 cm/s is ignored (WPNAV_WP_SPEED_MIN), climb and descent speeds have no
+  floor. **Only the first DO item before a leg runs before the leg is set up**: AP_Mission
+  starts one DO item with the nav item and each further one a main-loop tick (2.5 ms)
+  later, after the leg has fixed the speed it may end with (the next leg's entry limit,
+  which a later DO no longer changes). So a leg's exit speed follows the previous leg's
+  limits with only its first DO item applied (:func:`limits_at_setup`): seen in the SITL
+  flights' DataFlash logs ("Mission: 27 ChangeSpeed", "29 SplineWP", "28 ChangeSpeed" 2.5 ms
+  later) and in their speeds (Rescue drone 1 left leg 12 at the 0.19 m/s its old 0.10 m/s
+  descent limit allowed, not the 0.39 m/s of its new 1.5 m/s).
+- **Parameters** (:class:`ArduCopterSettings`, written to each drone's ``.parm`` and
+  checked on the vehicle at upload). BARO_GND_TEMP is deliberately absent: changing it on a
+  powered vehicle moved SITL's altitude estimate by 27 m (design.md section 9).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from missions.autopilots.spline import AccelLimits, SpeedLimits, Tracking
+
+#: ArduCopter ignores DO_CHANGE_SPEED ground speeds below this (AC_WPNav, Copter 4.5) [m/s].
+MIN_GROUND_SPEED = 0.20
+#: WPNAV_ACCEL and WPNAV_ACCEL_Z bounds (ArduCopter's parameter ranges) [m/s^2].
+ACCEL_RANGE = (0.5, 5.0)
+#: The order of the DO_CHANGE_SPEED items before a leg (``missions.builder``): ground,
+#: climb, descent speed; a limit gets an item when it changes by more than
+#: :data:`LIMIT_TOLERANCE` (relative).
+SPEED_ORDER = ("horizontal", "up", "down")
+LIMIT_TOLERANCE = 1e-6
+
+
+def changed_limits(previous: SpeedLimits, limits: SpeedLimits) -> tuple[str, ...]:
+    """The limits of ``limits`` that get a DO_CHANGE_SPEED item after ``previous``, in
+    :data:`SPEED_ORDER`."""
+    return tuple(
+        name
+        for name in SPEED_ORDER
+        if abs(getattr(limits, name) - getattr(previous, name))
+        > LIMIT_TOLERANCE * max(getattr(limits, name), getattr(previous, name))
+    )
+
+
+def limits_at_setup(previous: SpeedLimits, limits: SpeedLimits) -> SpeedLimits:
+    """The limits a leg flown with ``limits`` after a leg flown with ``previous`` is set up
+    with: ``previous`` with only the first changed limit applied (module docstring)."""
+    changed = changed_limits(previous, limits)
+    if not changed:
+        return limits
+    return replace(previous, **{changed[0]: getattr(limits, changed[0])})
+
+
+@dataclass(frozen=True)
+class ArduCopterSettings:
+    """The navigation parameters a plan assumes on every drone (SI units here; the
+    ``.parm`` file has ArduPilot's)."""
+
+    accel: float = 0.5  #: WPNAV_ACCEL [m/s^2]
+    accel_z: float = 0.5  #: WPNAV_ACCEL_Z [m/s^2]
+    speed: float = 5.0  #: WPNAV_SPEED [m/s], the ground speed before the first DO
+    speed_up: float = 2.5  #: WPNAV_SPEED_UP [m/s]
+    speed_down: float = 1.5  #: WPNAV_SPEED_DN [m/s]
+    jerk: float = 1.0  #: WPNAV_JERK [m/s^3]
+    position_p: float = 1.0  #: PSC_POSXY_P
+    velocity_p: float = 2.0  #: PSC_VELXY_P
+    position_p_z: float = 1.0  #: PSC_POSZ_P
+    velocity_p_z: float = 5.0  #: PSC_VELZ_P
+    #: How fast the airframe reaches the horizontal and the vertical acceleration it is
+    #: asked for [s] (not parameters: its attitude and thrust response), calibrated on the
+    #: Rescue and Puzzle SITL flights of tests/missions/data: with 0.05 s and 0.05 s their
+    #: 111 legs match SITL's within 3.8 % (rms 1.3 %), and the 60 legs of a later Puzzle
+    #: flight (planned with this model) within 6.9 % (rms 1.5 %). Horizontally 0.01-0.05 s
+    #: fit alike (rms within 0.2 %), 0.1 s and more worse (0.15 s: 10.1 % on the later
+    #: flight); vertically 0.02-0.1 s alike.
+    accel_lag: float = 0.05
+    accel_lag_z: float = 0.05
+
+    @classmethod
+    def for_acceleration(cls, max_acceleration: float) -> ArduCopterSettings:
+        """Settings whose spline legs change speed at ``max_acceleration`` [m/s^2]: a
+        spline uses half the kinematic limit along its tangent, so WPNAV_ACCEL and
+        WPNAV_ACCEL_Z are twice it, within their ranges."""
+        low, high = ACCEL_RANGE
+        accel = min(max(2.0 * max_acceleration, low), high)
+        return cls(accel=accel, accel_z=accel)
+
+    @property
+    def accel_limits(self) -> AccelLimits:
+        return AccelLimits(self.accel, self.accel_z)
+
+    @property
+    def initial_speeds(self) -> SpeedLimits:
+        return SpeedLimits(self.speed, self.speed_up, self.speed_down)
+
+    @property
+    def tracking(self) -> Tracking:
+        """The vehicle's response and the leg clock's filter (AC_WPNav's time constant
+        0.01 WPNAV_ACCEL [cm/s^2] / WPNAV_JERK [m/s^3])."""
+        return Tracking(
+            position_p=self.position_p,
+            velocity_p=self.velocity_p,
+            accel_lag=self.accel_lag,
+            clock_tc=self.accel * 100.0 * 0.01 / self.jerk,
+            position_p_z=self.position_p_z,
+            velocity_p_z=self.velocity_p_z,
+            accel_lag_z=self.accel_lag_z,
+        )
+
+    def parameters(self) -> dict[str, float]:
+        """The ``.parm`` values, in ArduPilot's units."""
+        return {
+            "WPNAV_ACCEL": round(self.accel * 100.0, 3),
+            "WPNAV_ACCEL_Z": round(self.accel_z * 100.0, 3),
+            "WPNAV_SPEED": round(self.speed * 100.0, 3),
+            "WPNAV_SPEED_UP": round(self.speed_up * 100.0, 3),
+            "WPNAV_SPEED_DN": round(self.speed_down * 100.0, 3),
+            "WPNAV_JERK": self.jerk,
+            "PSC_POSXY_P": self.position_p,
+            "PSC_VELXY_P": self.velocity_p,
+            "PSC_POSZ_P": self.position_p_z,
+            "PSC_VELZ_P": self.velocity_p_z,
+            "WP_YAW_BEHAVIOR": 0.0,
+        }
+
+    @staticmethod
+    def reasons() -> dict[str, str]:
+        """Why the plan needs each parameter (the ``.parm`` file's comments)."""
+        return {
+            "WPNAV_ACCEL": "spline legs change speed at half of it: the plan's acceleration limit",
+            "WPNAV_ACCEL_Z": "the same for climbs and descents",
+            "WPNAV_SPEED": "ground speed limit until the first DO_CHANGE_SPEED (cm/s)",
+            "WPNAV_SPEED_UP": "climb speed limit until the first climb DO_CHANGE_SPEED (cm/s)",
+            "WPNAV_SPEED_DN": "descent speed limit until the first descent DO_CHANGE_SPEED",
+            "WPNAV_JERK": "the leg clock's reaction to tracking lag (time constant ACCEL/JERK)",
+            "PSC_POSXY_P": "the same on all three drones: it sets how much a lagging drone slows",
+            "PSC_VELXY_P": "the tracking the plan's timing was modelled with",
+            "PSC_POSZ_P": "the same vertically",
+            "PSC_VELZ_P": "the same vertically",
+            "WP_YAW_BEHAVIOR": "0: keep the heading; the default yaws at every corner",
+        }

@@ -1,0 +1,77 @@
+"""Flight reports: how a recorded flight went against its plan, and whether it was safe.
+
+- :mod:`.log` reads one drone's tlog (estimate, truth where a simulator gives it, events);
+- :mod:`.alignment` puts the three drones on one mission time;
+- :mod:`.plan` reads what the drones were told (a task's directory);
+- :mod:`.report` computes every figure and the verdict, :mod:`.plot` draws them and
+  :mod:`.flight_log` logs them for Foxglove.
+
+:func:`report_sitl_flight` reports a flight our SITL harness recorded (its directory has
+``flight.json``), :func:`report_tlogs` any three tlogs of a task's missions (a real flight
+recorded by a ground station); :func:`write_report` saves ``report.json``, ``report.png``,
+``flown.json`` (the viewer draws the flown path from it, ``docs/viewer.md``) and
+``flight.mcap`` (the same figures over time, for Foxglove).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from missions.flight_report.alignment import releases_from_logs, releases_from_sends
+from missions.flight_report.flight_log import write_flight_mcap
+from missions.flight_report.log import read_vehicle_log
+from missions.flight_report.plan import PlannedFlight
+from missions.flight_report.plot import plot_flight_report
+from missions.flight_report.report import FlightReport, flight_report
+from missions.formats import dumps
+
+#: What write_report saves, and the viewer's flown-path file.
+REPORT_FILE, PLOT_FILE, FLOWN_FILE = "report.json", "report.png", "flown.json"
+MCAP_FILE = "flight.mcap"
+
+
+def report_sitl_flight(flight_dir: Path) -> tuple[FlightReport, PlannedFlight]:
+    """The report of a SITL flight: releases timed by the harness's sends."""
+    flight = json.loads((flight_dir / "flight.json").read_text(encoding="utf-8"))
+    plan = PlannedFlight.read(Path(flight["task_dir"]))
+    origin = plan.resolved.task.mission.origin
+    vehicles = [read_vehicle_log(flight_dir / v["tlog"], v["name"], origin)
+                for v in flight["vehicles"]]  # fmt: skip
+    sent = [v["release_sent_s"] for v in flight["vehicles"]]
+    releases = releases_from_sends(vehicles, flight["release_seq"], sent)
+    differences = tuple(flight.get("parameter_differences", ()))
+    return flight_report(plan, vehicles, releases, differences), plan
+
+
+def report_tlogs(task_dir: Path, tlogs: Sequence[Path]) -> tuple[FlightReport, PlannedFlight]:
+    """The report of three drones' tlogs (drone 1, 2, 3) of the missions in ``task_dir``:
+    releases from the logs alone."""
+    plan = PlannedFlight.read(task_dir)
+    origin = plan.resolved.task.mission.origin
+    vehicles = [read_vehicle_log(path, f"drone{k + 1}", origin) for k, path in enumerate(tlogs)]
+    release_seq = int(json.loads((task_dir / "summary.json").read_text())["mission"]["release"]
+                      ["release_seq"])  # fmt: skip
+    return flight_report(plan, vehicles, releases_from_logs(vehicles, release_seq)), plan
+
+
+def write_report(
+    report: FlightReport, plan: PlannedFlight, out_dir: Path, title: str = ""
+) -> dict[str, Path]:
+    """``report.json``, ``report.png``, ``flown.json`` (the safety source's drones on
+    mission time, for the viewer) and ``flight.mcap`` (:mod:`.flight_log`) into
+    ``out_dir``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / REPORT_FILE).write_text(dumps(report.as_dict()), encoding="utf-8")
+    plot_flight_report(report, out_dir / PLOT_FILE, title)
+    source = "true" if report.true is not None else "estimated"
+    flown: dict[str, Any] = {
+        "source": f"flight-{source}",
+        "time": report.series["time"]["mission"],
+        "drones_enu": report.series[source]["drones_enu"],
+    }
+    (out_dir / FLOWN_FILE).write_text(dumps(flown), encoding="utf-8")
+    write_flight_mcap(report, plan, out_dir / MCAP_FILE)
+    return {name: out_dir / name for name in (REPORT_FILE, PLOT_FILE, FLOWN_FILE, MCAP_FILE)}

@@ -1,0 +1,151 @@
+"""A recorded flight read back from telemetry logs: one ``.tlog`` per drone.
+
+Any tlog works: ours (SITL flights, :mod:`missions.sitl.flight`) or a ground station's from
+a real flight. Per drone this reads
+
+- the autopilot's estimate: GLOBAL_POSITION_INT (position, altitude AMSL, velocity), timed
+  by its own ``time_boot_ms``;
+- the truth where a simulator reports it: SIM_STATE (``lat_int``/``lon_int``, altitude AMSL);
+- the mission's progress: MISSION_CURRENT changes and MISSION_ITEM_REACHED.
+
+SIM_STATE and the mission messages have no time field. Each takes the midpoint of the
+vehicle times of the timed messages just before and just after it in the log: the vehicle
+sends a stream's messages of one instant together, in an order of its own (ArduCopter
+4.5.7 sends SIM_STATE before and MISSION_CURRENT after GLOBAL_POSITION_INT), so the
+midpoint is within half a stream period (10 ms at the 50 Hz our harness asks for) whatever
+that order is;
+- the log's own record times (the ground's receipt clock, common to the drones of one
+  ground station), kept beside each vehicle time to align the drones
+  (:mod:`missions.flight_report.alignment`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from pymavlink import mavutil
+
+from flycrane.errors import FieldProblem, InputError
+from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
+from missions.options import GeodeticOrigin
+
+#: Messages that carry the vehicle's own time.
+TIMED = frozenset({"GLOBAL_POSITION_INT", "SYSTEM_TIME", "ATTITUDE", "LOCAL_POSITION_NED"})
+
+
+@dataclass(frozen=True)
+class Track:
+    """Positions in the task's ENU frame on the vehicle's clock."""
+
+    time: NDArray[np.float64]  #: (N,) vehicle time [s]
+    enu: NDArray[np.float64]  #: (N, 3) [m]
+    log_time: NDArray[np.float64]  #: (N,) the log record's time [s]
+
+    def at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Positions at vehicle times ``t`` (linear between samples) (len(t), 3)."""
+        return np.column_stack([np.interp(t, self.time, self.enu[:, i]) for i in range(3)])
+
+
+@dataclass(frozen=True)
+class SeqEvents:
+    """Mission items by vehicle time: (time [s], log time [s], seq) rows."""
+
+    time: NDArray[np.float64]
+    log_time: NDArray[np.float64]
+    seq: NDArray[np.int64]
+
+    def first(self, seq: int) -> tuple[float, float] | None:
+        """(vehicle time, log time) of the first event of ``seq``."""
+        hits = np.flatnonzero(self.seq == seq)
+        return (float(self.time[hits[0]]), float(self.log_time[hits[0]])) if len(hits) else None
+
+
+@dataclass(frozen=True)
+class VehicleLog:
+    """What one drone's log says (module docstring)."""
+
+    name: str
+    system_id: int
+    estimated: Track
+    true: Track | None  #: None without SIM_STATE (a real vehicle)
+    current: SeqEvents  #: MISSION_CURRENT changes
+    reached: SeqEvents  #: MISSION_ITEM_REACHED
+
+
+def _timed(rows: Sequence[Sequence[float]], columns: int) -> NDArray[np.float64]:
+    array = np.array(rows, dtype=float).reshape(-1, columns)
+    return array[np.isfinite(array[:, 0])]
+
+
+def _events(rows: Sequence[Sequence[float]]) -> SeqEvents:
+    array = _timed(rows, 3)
+    return SeqEvents(array[:, 0], array[:, 1], array[:, 2].astype(np.int64))
+
+
+def _track(rows: Sequence[Sequence[float]], origin: GeodeticOrigin) -> Track:
+    array = _timed(rows, 5)
+    enu = enu_from_geodetic(
+        array[:, 2] * DEGREE_UNIT, array[:, 3] * DEGREE_UNIT, array[:, 4], origin
+    )
+    return Track(array[:, 0], enu, array[:, 1])
+
+
+def read_vehicle_log(path: Path, name: str, origin: GeodeticOrigin) -> VehicleLog:
+    """Read one drone's tlog (module docstring); positions in ENU about ``origin``.
+
+    Raises
+    ------
+    InputError
+        If the file is not a readable tlog, or has no GLOBAL_POSITION_INT with a position.
+    """
+    try:
+        log = mavutil.mavlink_connection(str(path), dialect="ardupilotmega", robust_parsing=True)
+    except OSError as error:
+        raise InputError([FieldProblem(name, f"cannot read {path}: {error}")]) from None
+    estimated: list[tuple[float, float, int, int, float]] = []
+    true: list[list[float]] = []
+    current: list[list[float]] = []
+    reached: list[list[float]] = []
+    waiting: list[list[float]] = []  # untimed rows whose time is the next midpoint
+    boot: float | None = None
+    system_id = 0
+    try:
+        while (msg := log.recv_msg()) is not None:
+            kind, stamp = msg.get_type(), float(getattr(msg, "_timestamp", 0.0))
+            if kind in TIMED:
+                now = msg.time_boot_ms / 1000.0
+                for row in waiting:
+                    row[0] = now if boot is None else (boot + now) / 2.0
+                waiting.clear()
+                boot = now
+            if kind == "GLOBAL_POSITION_INT" and (msg.lat or msg.lon):
+                system_id = msg.get_srcSystem()
+                estimated.append((now, stamp, msg.lat, msg.lon, msg.alt / 1000.0))
+            elif kind == "SIM_STATE":
+                lat = getattr(msg, "lat_int", 0) or round(msg.lat / DEGREE_UNIT)
+                lon = getattr(msg, "lon_int", 0) or round(msg.lon / DEGREE_UNIT)
+                true.append([np.nan, stamp, lat, lon, float(msg.alt)])
+                waiting.append(true[-1])
+            elif kind == "MISSION_CURRENT" and (not current or current[-1][2] != msg.seq):
+                current.append([np.nan, stamp, msg.seq])
+                waiting.append(current[-1])
+            elif kind == "MISSION_ITEM_REACHED":
+                reached.append([np.nan, stamp, msg.seq])
+                waiting.append(reached[-1])
+    finally:
+        log.close()
+    # rows after the last timed message have no time: dropped by the finite filters
+    if not estimated:
+        raise InputError([FieldProblem(name, f"{path} has no GLOBAL_POSITION_INT position")])
+    return VehicleLog(
+        name=name,
+        system_id=system_id,
+        estimated=_track(estimated, origin),
+        true=_track(true, origin) if true else None,
+        current=_events(current),
+        reached=_events(reached),
+    )

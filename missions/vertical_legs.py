@@ -1,0 +1,87 @@
+"""Lift-off and set-down: a start or goal that touches nothing but lies within the obstacle
+clearance of a surface (the Rescue's footbridge 5 cm above the roofs, its start 5 cm above
+the ground) is planned from or to the nearest raised pose that keeps the clearance.
+
+- **Set-down**: the mission's last leg descends slowly from the raised goal to the goal
+  (a spline leg timed at ``vertical_leg_speed``, the same on all three drones, ending at
+  rest in the final hold). Contact with the named surfaces during it is its intended end
+  (the load rests on the roof), not a failure; contact with anything else is.
+- **Lift-off**: the take-off climbs to the raised start with the load hanging below: it is
+  the take-off that lifts the load from its surfaces, before the drones are released
+  together (design.md section 9: take-offs lift 0.27-0.41 s apart, so the lift happens
+  below the clearance, where the load was resting anyway).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from flycrane.planning.validity import InvalidConfigurationError, ValidityChecker
+
+#: Raised poses are looked for up to this height above the given one, in this step [m].
+MAX_RAISE = 1.0
+RAISE_STEP = 0.01
+
+
+@dataclass(frozen=True)
+class VerticalLeg:
+    """A slow vertical leg between ``low`` (touching ``surfaces`` within the clearance) and
+    ``high`` (clear of everything by the clearance)."""
+
+    low: NDArray[np.float64]  #: (9,) the start or goal as given
+    high: NDArray[np.float64]  #: (9,) raised by :attr:`height`
+    surfaces: tuple[str, ...]  #: obstacles (or "ground") ``low`` is within the clearance of
+
+    @property
+    def height(self) -> float:
+        return float(self.high[2] - self.low[2])
+
+    def as_dict(self) -> dict:
+        return {
+            "low": self.low.tolist(),
+            "high": self.high.tolist(),
+            "surfaces": list(self.surfaces),
+            "height": self.height,
+        }
+
+
+def clear_end(
+    q: NDArray[np.float64], validity: ValidityChecker, what: str
+) -> tuple[NDArray[np.float64], VerticalLeg | None]:
+    """The pose to plan from or to for a start or goal ``q``, and its vertical leg if it
+    needs one (module docstring).
+
+    Raises
+    ------
+    InvalidConfigurationError
+        If ``q`` is invalid on the real obstacles (statics, bounds, a contact), or no pose up
+        to :data:`MAX_RAISE` above it keeps the clearance.
+    """
+    planning = validity.explain(q)
+    if planning.valid:
+        return q, None
+    real = validity.with_clearance(0.0)
+    real.require_valid(q, what)
+    if planning.out_of_bounds or planning.violations:
+        raise InvalidConfigurationError(what, planning)
+    surfaces = tuple(sorted({c.other for c in planning.contacts}))
+    for height in np.arange(RAISE_STEP, MAX_RAISE + RAISE_STEP / 2, RAISE_STEP):
+        high = q + np.array([0.0, 0.0, height, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+        if validity.is_valid(high)[0] and _touches_only(real, q, high, surfaces):
+            return high, VerticalLeg(np.asarray(q, dtype=float), high, surfaces)
+    raise InvalidConfigurationError(what, planning)
+
+
+def _touches_only(
+    real: ValidityChecker, low: NDArray, high: NDArray, surfaces: tuple[str, ...]
+) -> bool:
+    """Whether the vertical leg from ``low`` to ``high`` touches nothing but ``surfaces``."""
+    steps = max(2, int(np.ceil(float(high[2] - low[2]) / RAISE_STEP)) + 1)
+    for q in np.linspace(low, high, steps):
+        reason = real.explain(q)
+        if reason.violations or any(c.other not in surfaces for c in reason.contacts):
+            return False
+    return True

@@ -1,0 +1,116 @@
+"""The plan viewer in the browser: a task's page, its data, the task list, the page's files.
+
+- ``GET /v1/tasks/{id}/view``: the viewer page of a done task (HTML);
+- ``GET /v1/tasks/{id}/view.json``: the document that page draws (docs/viewer.md);
+- ``GET /v1/viewer``: the tasks, newest first, linking to their views and bundles;
+- ``GET /v1/viewer/static/{path}``: the page's script, styles and vendored libraries.
+
+Pages link to each other and to the static files by relative URLs, so they work behind a
+proxy that mounts the service under a path prefix.
+"""
+
+from __future__ import annotations
+
+import html
+
+from fastapi import APIRouter, Depends, Query
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
+
+from missions.task import TaskSpec
+from missions.viewer import (
+    ViewUnavailableError,
+    served_page,
+    standalone_page,
+    static_file,
+    view_document,
+)
+from missions.viewer.page import ListedTask, task_list_page
+from service.deps import ServiceState, get_state
+from service.errors import ArtifactNotFoundError, TaskNotFoundError, TaskNotReadyError
+from service.storage import MAX_OFFSET, TaskRecord, TaskStatus
+
+router = APIRouter(tags=["viewer"])
+
+#: The page's files as seen from /v1/tasks/{id}/view and from /v1/viewer.
+_STATIC_FROM_TASK, _STATIC_FROM_LIST = "../../viewer/static/", "viewer/static/"
+
+
+def _document(state: ServiceState, task_id: str) -> dict:
+    record = state.store.get(task_id)
+    if record is None:
+        raise TaskNotFoundError(f"no task {task_id!r}")
+    return _done_document(state, record)
+
+
+def _done_document(state: ServiceState, record: TaskRecord) -> dict:
+    if record.status is not TaskStatus.DONE:
+        raise TaskNotReadyError(f"task {record.id} is {record.status}, not done: nothing to view")
+    try:
+        return view_document(
+            TaskSpec.model_validate(record.request), state.jobs.task_dir(record.id)
+        )
+    except ViewUnavailableError as error:
+        raise ArtifactNotFoundError(str(error)) from None
+
+
+def bundle_view(state: ServiceState, record: TaskRecord) -> str:
+    """The standalone view.html of a done task, for its bundle.zip."""
+    return standalone_page(_done_document(state, record))
+
+
+@router.get("/v1/tasks/{task_id}/view", response_class=HTMLResponse)
+def view_task(task_id: str, state: ServiceState = Depends(get_state)) -> HTMLResponse:
+    """The viewer page of a done task: scene, planned (and flown) motion, profiles."""
+    page = served_page(_document(state, task_id), _STATIC_FROM_TASK, "../../viewer")
+    return HTMLResponse(page)
+
+
+@router.get("/v1/tasks/{task_id}/view.json")
+def view_task_data(task_id: str, state: ServiceState = Depends(get_state)) -> JSONResponse:
+    """The viewer's document of a done task (docs/viewer.md)."""
+    return JSONResponse(_document(state, task_id))
+
+
+def _listed(record: TaskRecord) -> ListedTask:
+    result = record.result or {}
+    mission = result.get("mission") or {}
+    if record.status is TaskStatus.DONE and mission:
+        summary = f"{mission['waypoints']} waypoints, {mission['duration']:.1f} s"
+    else:
+        summary = record.error or ""
+    done = record.status is TaskStatus.DONE
+    return ListedTask(
+        name=record.request.get("name") or record.id,
+        status=record.status.value,
+        created=record.created_at.strftime("%Y-%m-%d %H:%M:%S"),
+        summary=summary,
+        view_url=f"tasks/{record.id}/view" if done else "",
+        bundle_url=f"tasks/{record.id}/bundle.zip" if result.get("artifacts") else "",
+    )
+
+
+@router.get("/v1/viewer", response_class=HTMLResponse)
+def task_list(
+    offset: int = Query(0, ge=0, le=MAX_OFFSET),
+    limit: int = Query(50, ge=1, le=500),
+    state: ServiceState = Depends(get_state),
+) -> HTMLResponse:
+    """The tasks, newest first, with links to their views and bundles."""
+    records, total = state.store.list(None, offset, limit)
+    links = []
+    if offset > 0:
+        links.append(f'<a href="?offset={max(offset - limit, 0)}&amp;limit={limit}">newer</a>')
+    if offset + limit < total:
+        links.append(f'<a href="?offset={offset + limit}&amp;limit={limit}">older</a>')
+    shown = f"{offset + 1}-{offset + len(records)} of {total}" if records else f"0 of {total}"
+    pages = " ".join([html.escape(shown), *links])
+    return HTMLResponse(task_list_page([_listed(r) for r in records], _STATIC_FROM_LIST, pages))
+
+
+@router.get("/v1/viewer/static/{name:path}")
+def viewer_static(name: str) -> FileResponse:
+    """A file of the viewer page (its script, styles, vendored libraries and licenses)."""
+    path = static_file(name)
+    if path is None:
+        raise ArtifactNotFoundError(f"the viewer has no file {name!r}")
+    return FileResponse(path)

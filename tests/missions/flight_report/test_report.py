@@ -1,0 +1,81 @@
+"""The flight report on flights whose truth we impose: three mock ArduCopters fly the Rescue
+missions (``tests/missions/test_replay.py``'s harness, lock-step simulated clock) and
+record a tlog each, as a ground station would; ``flycrane flight-report`` reads the three
+tlogs back with nothing else.
+
+What is imposed and must come back: the release offsets (exact simulated times,
+``SimClock.held(at=...)``), and that the mocks fly the plan's model (so the load stays
+within the plan's margins and the drones in step). The MCAP log is read back with the
+``mcap`` library.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from missions.mavlink import Imperfections
+from tests.missions.test_replay import Exported, fly, late_drones
+from tests.missions.test_replay import rescue as rescue
+
+from ..mavlink.conftest import no_leaked_threads  # noqa: F401 (autouse fixture)
+
+
+def report_of(exported: Exported, tmp_path: Path, delays: list[float]) -> dict:
+    """Fly with ``delays``, run ``flycrane flight-report`` on the tlogs, return report.json."""
+    fly(exported, [Imperfections()] * 3, release_delays=delays, tlog_dir=tmp_path)
+    tlogs = [str(tmp_path / f"drone{k}.tlog") for k in (1, 2, 3)]
+    command = [sys.executable, "-m", "flycrane.cli", "flight-report", str(exported.directory),
+               "--tlogs", *tlogs, "--out", str(tmp_path / "report")]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert done.returncode in (0, 1), done.stderr[-3000:]  # 0 safe, 1 unsafe
+    report = json.loads((tmp_path / "report" / "report.json").read_text())
+    assert (done.returncode == 0) == report["verdict"]["safe"]
+    return report
+
+
+def test_a_flight_in_step_is_reported_safe_with_its_figures_in_the_log(rescue, tmp_path):
+    report = report_of(rescue, tmp_path, [0.0, 0.0, 0.0])
+    assert report["true"] is None  # the mock sends no SIM_STATE: estimates only
+    estimated = report["estimated"]
+    assert report["verdict"]["safe"], report["verdict"]["reasons"]
+    assert report["release_spread"] <= 0.04  # two steps of the 20 ms simulation
+    flown, planned = report["timing"]["flown_duration"], report["planned_duration"]
+    assert flown == pytest.approx(planned, abs=0.1)  # the mocks fly the plan's model
+    assert estimated["converged"] and estimated["feasible"] and estimated["collision_free"]
+    assert estimated["inter_drone_error_p95"] <= 0.05
+
+    log = tmp_path / "report" / "flight.mcap"
+    with log.open("rb") as stream:
+        messages = make_reader(stream).iter_messages(["/flight/estimated"])
+        figures = [json.loads(message.data) for _, _, message in messages]
+    with log.open("rb") as stream:
+        metadata = {m.name: json.loads(m.metadata["json"])
+                    for m in make_reader(stream).iter_metadata()}  # fmt: skip
+    assert len(figures) == estimated["samples"]
+    clearance = min(f["clearance"] for f in figures)
+    assert clearance == pytest.approx(estimated["least_clearance"])
+    assert max(max(f["error_in_time"]) for f in figures) == pytest.approx(
+        max(estimated["error_in_time_max"])
+    )
+    assert metadata["report"]["verdict"] == report["verdict"]
+
+
+def test_a_release_beyond_the_tolerance_is_reported_unsafe_and_its_spread_measured(
+    rescue, tmp_path
+):
+    late = 2.5 * rescue.tolerance["start_offset"]
+    delays = [late if k in late_drones(rescue.tolerance["start_offset_case"]) else 0.0
+              for k in range(3)]  # fmt: skip
+    report = report_of(rescue, tmp_path, delays)
+    assert report["release_spread"] == pytest.approx(late, abs=0.04)
+    assert not report["verdict"]["safe"]
+    assert any("release spread" in r for r in report["verdict"]["reasons"])
+    progress = np.array(report["series"]["progress"]["plan_time"], dtype=float)
+    assert np.nanmax(np.nanmax(progress, axis=1) - np.nanmin(progress, axis=1)) >= 0.5 * late
