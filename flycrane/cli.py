@@ -174,7 +174,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         "--planners",
         nargs="+",
         default=["trrt", "rrt", "ompl-trrt", "ompl-rrt"],
-        choices=["trrt", "rrt", "ompl-trrt", "ompl-rrt"],
+        choices=["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt"],
     )
     bench.add_argument("--runs", type=int, default=100, help="seeds per scene and planner")
     bench.add_argument("--budget", type=float, default=60.0, help="seconds per run")

@@ -10,8 +10,11 @@ stays the reference this kernel is tested against and the checker of triangle me
   drone's cables, no drone or cable touching the payload (cables without their first
   ``cable_clearance_at_platform`` metres).
 
-Per configuration, one compiled pass: pose every body, box-test it against each obstacle,
-and decide the overlapping pairs with :mod:`flycrane.collision_primitives` (exact closed
+Per configuration, one compiled pass in three parts: the pose (platform and payload, which
+no alpha moves), each drone with its two cables (what its alpha moves), and the formation
+(drone separations, drones against other drones' cables); the planner uses the parts
+alone to choose the alphas of a pose. Every body is box-tested against each obstacle and
+the overlapping pairs are decided by :mod:`flycrane.collision_primitives` (exact closed
 forms for spheres, GJK with proven bounds otherwise). Nothing is allocated per
 configuration; a batch shares one :func:`workspace`.
 """
@@ -24,7 +27,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from flycrane.cable_system import CABLE_DRONE, CableSystem
+from flycrane.cable_system import CableSystem
 from flycrane.collision_geometry import platform_body
 from flycrane.collision_primitives import (
     BOX,
@@ -39,10 +42,14 @@ from flycrane.collision_primitives import (
 )
 from flycrane.kinematics import matrix_from_tilt_torsion
 from flycrane.scene import Box, Cylinder, Mesh, SceneSpec, Sphere
+from flycrane.system import DRONE_CABLES
 
-_CABLE_DRONE = np.array(CABLE_DRONE, dtype=np.int64)
-#: Rows of the robot-body tables before the payload's: 3 drones, 6 cables, the platform.
+#: Robot-body rows, drone by drone: drone k at 3k, its cables DRONE_CABLES[k] at 3k + 1 and
+#: 3k + 2 (so each drone's bodies are one range), the platform at 9, the payload from 10.
 _FIXED_BODIES = 10
+_PLATFORM = 9
+#: Platform point b_i where each cable row starts (rows 3k + 1 + m: cable DRONE_CABLES[k][m]).
+_CABLE_POINTS = np.array(DRONE_CABLES, dtype=np.int64)
 
 
 def _primitives(shapes) -> tuple[np.ndarray, ...]:
@@ -120,9 +127,12 @@ class CompiledScene:
                 float(scene.ground),
             ]
         )
-        # Robot bodies: 3 drones (points), 6 cables (segments), the platform, the payload.
-        body_kind = np.array([POINT] * 3 + [SEGMENT] * 6 + [POLYTOPE], dtype=np.int64)
-        body_margin = np.array([settings.drone_radius] * 3 + [settings.cable_radius] * 6 + [0.0])
+        # Robot bodies (rows: _FIXED_BODIES): per drone a point and two segments, the
+        # platform, the payload.
+        body_kind = np.array([POINT, SEGMENT, SEGMENT] * 3 + [POLYTOPE], dtype=np.int64)
+        body_margin = np.array(
+            [settings.drone_radius, settings.cable_radius, settings.cable_radius] * 3 + [0.0]
+        )
         arrays = (
             *obstacles,
             low,
@@ -130,7 +140,7 @@ class CompiledScene:
             *payload,
             np.ascontiguousarray(vertices),
             params,
-            _CABLE_DRONE,
+            _CABLE_POINTS,
             np.concatenate([body_kind, payload[0]]),
             np.concatenate([body_margin, payload[4]]),
         )
@@ -154,129 +164,20 @@ class CompiledScene:
 
 
 @numba.njit(cache=True, nogil=True)
-def collision_free_row(q, kin, scene, work) -> bool:
-    """Whether configuration q (9,) collides with nothing (module docstring).
+def _bodies_free(first, last, scene, work) -> bool:
+    """Robot bodies first..last-1 (placed) against the ground and the obstacles; fills
+    their bounds.
 
-    ``kin``: :func:`kinematic_arrays`; ``scene``: :attr:`CompiledScene.arrays`; ``work``:
-    :meth:`CompiledScene.workspace`.
+    Shape kinds are always passed from the kinds array, never as constants: numba types a
+    constant argument as a literal, and every literal compiles the callees again.
     """
-    points, foot, radius, outward, up = kin
-    (
-        obs_kind,
-        obs_center,
-        obs_rot,
-        obs_size,
-        obs_margin,
-        obs_low,
-        obs_high,
-        _pay_kind,
-        pay_center,
-        pay_rot,
-        pay_size,
-        _pay_margin,
-        plat_local,
-        params,
-        cable_drone,
-        kinds,
-        margins,
-    ) = scene
+    obs_kind, obs_center, obs_rot, obs_size, obs_margin, obs_low, obs_high = scene[:7]
+    params, kinds, margins = scene[13], scene[15], scene[16]
     centers, sizes, rots, verts, boxes, gjk = work
-    drone_r, cable_r, separation, skip, ground_z = (
-        params[0],
-        params[1],
-        params[2],
-        params[3],
-        params[4],
-    )
-    ground = params[5] > 0.0
-    spare = kinds.shape[0]
-    # Pose (paper eq. 1-2): R into the spare rotation, drones A_k, cables b_i -> A_k,
-    # platform vertices, payload shapes.
-    rot = rots[spare]
-    phi, theta, sigma = q[3], q[4], q[5]
-    cp, sp, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
-    cs, ss = math.cos(sigma - phi), math.sin(sigma - phi)
-    rot[0, 0], rot[0, 1], rot[0, 2] = cp * ct * cs - sp * ss, -cp * ct * ss - sp * cs, cp * st
-    rot[1, 0], rot[1, 1], rot[1, 2] = sp * ct * cs + cp * ss, -sp * ct * ss + cp * cs, sp * st
-    rot[2, 0], rot[2, 1], rot[2, 2] = -st * cs, st * ss, ct
-    for k in range(3):
-        ca, sa = math.cos(q[6 + k]), math.sin(q[6 + k])
-        for a in range(3):
-            acc = q[a]
-            for c in range(3):
-                acc += rot[a, c] * (foot[k, c] + radius[k] * (ca * outward[k, c] + sa * up[k, c]))
-            centers[k, a] = acc
-    for i in range(6):
-        for a in range(3):
-            acc = q[a]
-            for c in range(3):
-                acc += rot[a, c] * points[i, c]
-            centers[3 + i, a] = acc
-            sizes[3 + i, a] = centers[cable_drone[i], a]
-    for v in range(plat_local.shape[0]):
-        for a in range(3):
-            acc = q[a]
-            for c in range(3):
-                acc += rot[a, c] * plat_local[v, c]
-            verts[v, a] = acc
-    n_bodies = spare
-    for b in range(_FIXED_BODIES, n_bodies):
-        j = b - _FIXED_BODIES
-        for a in range(3):
-            acc = q[a]
-            for c in range(3):
-                acc += rot[a, c] * pay_center[j, c]
-                total = 0.0
-                for m in range(3):
-                    total += rot[a, m] * pay_rot[j, m, c]
-                rots[b, a, c] = total
-            centers[b, a] = acc
-            sizes[b, a] = pay_size[j, a]
-    # Self: drone separation, drones against other drones' cables.
-    reach = (drone_r + cable_r) ** 2
-    for k in range(3):
-        for m in range(k + 1, 3):
-            gap = 0.0
-            for a in range(3):
-                gap += (centers[k, a] - centers[m, a]) ** 2
-            if gap < separation * separation:
-                return False
-        for i in range(6):
-            if cable_drone[i] != k:
-                if point_distance_squared(centers[k], SEGMENT, 3 + i, centers, rots, sizes) < reach:
-                    return False
-    # Bounds of every body (margins added); the ground.
-    for b in range(n_bodies):
+    for b in range(first, last):
         bounds(kinds[b], b, centers, rots, sizes, verts, margins[b], boxes, b)
-        if ground and boxes[b, 0, 2] <= ground_z:
+        if params[5] > 0.0 and boxes[b, 0, 2] <= params[4]:
             return False
-    # Drones and cables (without their first ``skip`` metres) against the payload.
-    for p in range(_FIXED_BODIES, n_bodies):
-        for k in range(3):
-            if _boxes_overlap(boxes, k, boxes, p) and shapes_touch(
-                POINT, k, centers, rots, sizes, verts,
-                kinds[p], p, centers, rots, sizes, verts,
-                drone_r + margins[p], gjk,
-            ):  # fmt: skip
-                return False
-        for i in range(3, 9):
-            if not _boxes_overlap(boxes, i, boxes, p):
-                continue
-            length = 0.0
-            for a in range(3):
-                length += (sizes[i, a] - centers[i, a]) ** 2
-            fraction = min(1.0, skip / math.sqrt(length)) if length > 0.0 else 1.0
-            for a in range(3):
-                centers[spare, a] = centers[i, a] + fraction * (sizes[i, a] - centers[i, a])
-                sizes[spare, a] = sizes[i, a]
-            if shapes_touch(
-                SEGMENT, spare, centers, rots, sizes, verts,
-                kinds[p], p, centers, rots, sizes, verts,
-                cable_r + margins[p], gjk,
-            ):  # fmt: skip
-                return False
-    # Every body against every obstacle whose bounds its own bounds overlap.
-    for b in range(n_bodies):
         for o in range(obs_kind.shape[0]):
             if (
                 boxes[b, 0, 0] > obs_high[o, 0]
@@ -294,6 +195,143 @@ def collision_free_row(q, kin, scene, work) -> bool:
             ):  # fmt: skip
                 return False
     return True
+
+
+@numba.njit(cache=True, nogil=True)
+def pose_free(q, kin, scene, work) -> bool:
+    """Place the platform pose of q (R, cable starts b_i, platform, payload) and check the
+    platform and the payload, which no alpha moves. The first part of
+    :func:`collision_free_row`; :func:`drone_free` and :func:`formation_free` follow it."""
+    points = kin[0]
+    pay_center, pay_rot, pay_size, plat_local = scene[8], scene[9], scene[10], scene[12]
+    cable_points = scene[14]
+    centers, sizes, rots, verts = work[0], work[1], work[2], work[3]
+    spare = scene[15].shape[0]
+    rot = rots[spare]  # R (paper eq. 1) lives in the spare row
+    phi, theta, sigma = q[3], q[4], q[5]
+    cp, sp, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+    cs, ss = math.cos(sigma - phi), math.sin(sigma - phi)
+    rot[0, 0], rot[0, 1], rot[0, 2] = cp * ct * cs - sp * ss, -cp * ct * ss - sp * cs, cp * st
+    rot[1, 0], rot[1, 1], rot[1, 2] = sp * ct * cs + cp * ss, -sp * ct * ss + cp * cs, sp * st
+    rot[2, 0], rot[2, 1], rot[2, 2] = -st * cs, st * ss, ct
+    for k in range(3):
+        for m in range(2):
+            i = cable_points[k, m]
+            for a in range(3):
+                acc = q[a]
+                for c in range(3):
+                    acc += rot[a, c] * points[i, c]
+                centers[3 * k + 1 + m, a] = acc
+    for v in range(plat_local.shape[0]):
+        for a in range(3):
+            acc = q[a]
+            for c in range(3):
+                acc += rot[a, c] * plat_local[v, c]
+            verts[v, a] = acc
+    for b in range(_FIXED_BODIES, spare):
+        j = b - _FIXED_BODIES
+        for a in range(3):
+            acc = q[a]
+            for c in range(3):
+                acc += rot[a, c] * pay_center[j, c]
+                total = 0.0
+                for m in range(3):
+                    total += rot[a, m] * pay_rot[j, m, c]
+                rots[b, a, c] = total
+            centers[b, a] = acc
+            sizes[b, a] = pay_size[j, a]
+    return _bodies_free(_PLATFORM, spare, scene, work)
+
+
+@numba.njit(cache=True, nogil=True)
+def drone_free(q, k, kin, scene, work) -> bool:
+    """Place drone k at its alpha q[6 + k] with its two cables (after :func:`pose_free`)
+    and check them against the ground, the obstacles and the payload (cables without their
+    first ``cable_clearance_at_platform`` metres): everything drone k's alpha moves but
+    the other drones."""
+    _, foot, radius, outward, up = kin
+    params, kinds, margins = scene[13], scene[15], scene[16]
+    centers, sizes, rots, verts, boxes, gjk = work
+    spare = kinds.shape[0]
+    rot = rots[spare]
+    drone = 3 * k
+    ca, sa = math.cos(q[6 + k]), math.sin(q[6 + k])
+    for a in range(3):
+        acc = q[a]
+        for c in range(3):
+            acc += rot[a, c] * (foot[k, c] + radius[k] * (ca * outward[k, c] + sa * up[k, c]))
+        centers[drone, a] = acc
+        sizes[drone + 1, a] = sizes[drone + 2, a] = acc
+    if not _bodies_free(drone, drone + 3, scene, work):
+        return False
+    for p in range(_FIXED_BODIES, spare):
+        if _boxes_overlap(boxes, drone, boxes, p) and shapes_touch(
+            kinds[drone], drone, centers, rots, sizes, verts,
+            kinds[p], p, centers, rots, sizes, verts,
+            params[0] + margins[p], gjk,
+        ):  # fmt: skip
+            return False
+        for cable in range(drone + 1, drone + 3):
+            if not _boxes_overlap(boxes, cable, boxes, p):
+                continue
+            length = 0.0
+            for a in range(3):
+                length += (sizes[cable, a] - centers[cable, a]) ** 2
+            fraction = min(1.0, params[3] / math.sqrt(length)) if length > 0.0 else 1.0
+            for a in range(3):
+                centers[spare, a] = centers[cable, a] + fraction * (
+                    sizes[cable, a] - centers[cable, a]
+                )
+                sizes[spare, a] = sizes[cable, a]
+            if shapes_touch(
+                kinds[cable], spare, centers, rots, sizes, verts,
+                kinds[p], p, centers, rots, sizes, verts,
+                params[1] + margins[p], gjk,
+            ):  # fmt: skip
+                return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def formation_free(scene, work) -> bool:
+    """Drone centres at least the separation apart, no drone touching another drone's
+    cables (after :func:`drone_free` placed all three)."""
+    params, kinds = scene[13], scene[15]
+    centers, sizes, rots = work[0], work[1], work[2]
+    reach = (params[0] + params[1]) ** 2
+    for k in range(3):
+        for m in range(3):
+            if m == k:
+                continue
+            if m > k:
+                gap = 0.0
+                for a in range(3):
+                    gap += (centers[3 * k, a] - centers[3 * m, a]) ** 2
+                if gap < params[2] * params[2]:
+                    return False
+            for cable in range(3 * m + 1, 3 * m + 3):
+                d = point_distance_squared(
+                    centers[3 * k], kinds[cable], cable, centers, rots, sizes
+                )
+                if d < reach:
+                    return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def collision_free_row(q, kin, scene, work) -> bool:
+    """Whether configuration q (9,) collides with nothing (module docstring).
+
+    ``kin``: :func:`kinematic_arrays`; ``scene``: :attr:`CompiledScene.arrays`; ``work``:
+    :meth:`CompiledScene.workspace`.
+    """
+    return (
+        pose_free(q, kin, scene, work)
+        and drone_free(q, 0, kin, scene, work)
+        and drone_free(q, 1, kin, scene, work)
+        and drone_free(q, 2, kin, scene, work)
+        and formation_free(scene, work)
+    )
 
 
 @numba.njit(cache=True, nogil=True)

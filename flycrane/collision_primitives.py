@@ -47,7 +47,7 @@ GJK_WORK = 12
 MAX_ITERATIONS = 64
 
 
-@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def support(kind, row, centers, rots, sizes, verts, dx, dy, dz, out) -> None:
     """The point of shape ``row`` of a table furthest along (dx, dy, dz), into out (3,)."""
     if kind == POINT:
@@ -115,6 +115,13 @@ def bounds(kind, row, centers, rots, sizes, verts, margin, out, out_row) -> None
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
+def _copy(source, target) -> None:
+    """target[:] = source for 3-vectors, element by element (numba compiles an array
+    assignment into seconds of broadcasting machinery; this into nothing)."""
+    target[0], target[1], target[2] = source[0], source[1], source[2]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _dot(a, b) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
@@ -125,7 +132,19 @@ def _squared_gap(a, b) -> float:
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _triangle(a, b, c, v) -> int:
+def _segment_closest(a, b, v) -> float:
+    """Closest point v of segment ab to the origin; returns its squared distance."""
+    e0, e1, e2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    length = e0 * e0 + e1 * e1 + e2 * e2
+    t = 0.0
+    if length > 0.0:
+        t = min(1.0, max(0.0, -(e0 * a[0] + e1 * a[1] + e2 * a[2]) / length))
+    v[0], v[1], v[2] = a[0] + t * e0, a[1] + t * e1, a[2] + t * e2
+    return v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _triangle(a, b, c, v, scratch) -> int:
     """Closest point v of triangle abc to the origin; returns the kept vertices as bits
     (1: a, 2: b, 4: c). Ericson 5.1.5 with p = 0; a degenerate triangle falls back to its
     edges."""
@@ -166,17 +185,14 @@ def _triangle(a, b, c, v) -> int:
         return 6
     total = va + vb + vc
     if total <= 0.0:  # collinear corners: the nearest of the three edges
-        best, kept = math.inf, 0
-        for first, second, bits in ((a, b, 3), (a, c, 5), (b, c, 6)):
-            e0, e1, e2 = second[0] - first[0], second[1] - first[1], second[2] - first[2]
-            length = e0 * e0 + e1 * e1 + e2 * e2
-            t = 0.0
-            if length > 0.0:
-                t = min(1.0, max(0.0, -(e0 * first[0] + e1 * first[1] + e2 * first[2]) / length))
-            p0, p1, p2 = first[0] + t * e0, first[1] + t * e1, first[2] + t * e2
-            if p0 * p0 + p1 * p1 + p2 * p2 < best:
-                best, kept = p0 * p0 + p1 * p1 + p2 * p2, bits
-                v[0], v[1], v[2] = p0, p1, p2
+        kept = 3
+        best = _segment_closest(a, b, v)
+        if _segment_closest(a, c, scratch) < best:
+            best, kept = _dot(scratch, scratch), 5
+            v[0], v[1], v[2] = scratch[0], scratch[1], scratch[2]
+        if _segment_closest(b, c, scratch) < best:
+            kept = 6
+            v[0], v[1], v[2] = scratch[0], scratch[1], scratch[2]
         return kept
     s, t = vb / total, vc / total
     v[0] = a[0] + s * ab0 + t * ac0
@@ -190,7 +206,7 @@ def _closest_on_simplex(simplex, n, v, scratch, chosen) -> int:
     """Closest point v of the simplex (n points) to the origin; the simplex is reduced to
     the smallest face holding it. Returns the new size, 0 if the origin is inside."""
     if n == 1:
-        v[:] = simplex[0]
+        _copy(simplex[0], v)
         return 1
     if n == 2:
         a, b = simplex[0], simplex[1]
@@ -198,41 +214,56 @@ def _closest_on_simplex(simplex, n, v, scratch, chosen) -> int:
         length = e0 * e0 + e1 * e1 + e2 * e2
         t = -(e0 * a[0] + e1 * a[1] + e2 * a[2]) / length if length > 0.0 else 0.0
         if t <= 0.0:
-            v[:] = a
+            _copy(a, v)
             return 1
         if t >= 1.0:
-            v[:] = b
-            simplex[0] = b
+            _copy(b, v)
+            _copy(b, simplex[0])
             return 1
         v[0], v[1], v[2] = a[0] + t * e0, a[1] + t * e1, a[2] + t * e2
         return 2
     if n == 3:
-        bits = _triangle(simplex[0], simplex[1], simplex[2], v)
+        bits = _triangle(simplex[0], simplex[1], simplex[2], v, scratch)
         return _keep(simplex, chosen, bits, 0, 1, 2)
-    # Tetrahedron: the origin is inside unless it lies outside some face's plane.
+    # Tetrahedron: the origin is inside unless it lies outside some face's plane; faces
+    # (0, 1, 2), (0, 2, 3), (0, 3, 1), (1, 3, 2), each with its opposite corner.
     a, b, c, d = simplex[0], simplex[1], simplex[2], simplex[3]
-    best, kept_bits, kept_face = math.inf, 0, -1
-    faces = ((0, 1, 2, 3), (0, 2, 3, 1), (0, 3, 1, 2), (1, 3, 2, 0))
     scale = math.sqrt(_squared_gap(a, b) * _squared_gap(a, c) * _squared_gap(a, d))
-    for face in range(4):
-        i, j, k, opposite = faces[face]
-        p, q, r, o = simplex[i], simplex[j], simplex[k], simplex[opposite]
-        n0 = (q[1] - p[1]) * (r[2] - p[2]) - (q[2] - p[2]) * (r[1] - p[1])
-        n1 = (q[2] - p[2]) * (r[0] - p[0]) - (q[0] - p[0]) * (r[2] - p[2])
-        n2 = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
-        side_origin = -(n0 * p[0] + n1 * p[1] + n2 * p[2])
-        side_opposite = n0 * (o[0] - p[0]) + n1 * (o[1] - p[1]) + n2 * (o[2] - p[2])
-        flat = abs(side_opposite) <= 1e-12 * scale  # a degenerate tetrahedron: try every face
-        if flat or side_origin * side_opposite < 0.0:
-            bits = _triangle(p, q, r, scratch)
-            distance = _dot(scratch, scratch)
-            if distance < best:
-                best, kept_bits, kept_face = distance, bits, face
-                v[:] = scratch
-    if kept_face < 0:
+    best = math.inf
+    face = -1
+    for f in range(4):
+        i = 1 if f == 3 else 0
+        j = (1, 2, 3, 3)[f]
+        k = (2, 3, 1, 2)[f]
+        o = (3, 1, 2, 0)[f]
+        distance = _face_distance(simplex, i, j, k, o, scale, scratch, chosen)
+        if distance < best:
+            best, face = distance, f
+            _copy(scratch, v)
+    if face < 0:
         return 0
-    i, j, k, _ = faces[kept_face]
-    return _keep(simplex, chosen, kept_bits, i, j, k)
+    i = 1 if face == 3 else 0
+    j = (1, 2, 3, 3)[face]
+    k = (2, 3, 1, 2)[face]
+    bits = _triangle(simplex[i], simplex[j], simplex[k], scratch, chosen[0])
+    return _keep(simplex, chosen, bits, i, j, k)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _face_distance(simplex, i, j, k, o, scale, v, scratch) -> float:
+    """Squared distance from the origin to face ijk when the origin lies outside the face's
+    plane (or the tetrahedron is flat), its closest point into v; +inf otherwise."""
+    p, q, r, x = simplex[i], simplex[j], simplex[k], simplex[o]
+    n0 = (q[1] - p[1]) * (r[2] - p[2]) - (q[2] - p[2]) * (r[1] - p[1])
+    n1 = (q[2] - p[2]) * (r[0] - p[0]) - (q[0] - p[0]) * (r[2] - p[2])
+    n2 = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
+    side_origin = -(n0 * p[0] + n1 * p[1] + n2 * p[2])
+    side_opposite = n0 * (x[0] - p[0]) + n1 * (x[1] - p[1]) + n2 * (x[2] - p[2])
+    flat = abs(side_opposite) <= 1e-12 * scale  # a degenerate tetrahedron: try every face
+    if not (flat or side_origin * side_opposite < 0.0):
+        return math.inf
+    _triangle(p, q, r, v, scratch[0])
+    return _dot(v, v)
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -240,12 +271,17 @@ def _keep(simplex, chosen, bits, i, j, k) -> int:
     """Compact simplex points i, j, k selected by bits (1, 2, 4) to the front (through
     ``chosen``, 3 x 3 scratch, as the indices may cross)."""
     n = 0
-    for bit, index in ((1, i), (2, j), (4, k)):
-        if bits & bit:
-            chosen[n] = simplex[index]
-            n += 1
+    if bits & 1:
+        _copy(simplex[i], chosen[n])
+        n += 1
+    if bits & 2:
+        _copy(simplex[j], chosen[n])
+        n += 1
+    if bits & 4:
+        _copy(simplex[k], chosen[n])
+        n += 1
     for m in range(n):
-        simplex[m] = chosen[m]
+        _copy(chosen[m], simplex[m])
     return n
 
 
@@ -257,8 +293,9 @@ def separated(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) 
     v, w, pa, pb, scratch = work[4], work[5], work[6], work[7], work[8]
     support(ka, ra, ca, rota, sa, va, 1.0, 0.0, 0.0, pa)
     support(kb, rb, cb, rotb, sb, vb, -1.0, 0.0, 0.0, pb)
-    v[:] = pa - pb
-    simplex[0] = v
+    for a in range(3):
+        v[a] = pa[a] - pb[a]
+    _copy(v, simplex[0])
     n = 1
     limit = max(margin, CONTACT_TOLERANCE) ** 2
     for _ in range(MAX_ITERATIONS):
@@ -267,13 +304,14 @@ def separated(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) 
             return False
         support(ka, ra, ca, rota, sa, va, -v[0], -v[1], -v[2], pa)
         support(kb, rb, cb, rotb, sb, vb, v[0], v[1], v[2], pb)
-        w[:] = pa - pb
+        for a in range(3):
+            w[a] = pa[a] - pb[a]
         vw = _dot(v, w)
         if vw > 0.0 and vw * vw > margin * margin * vv:
             return True  # the lower bound v.w / |v| exceeds the margin
         if vv - vw <= EPS_RELATIVE * vv:
             return False  # converged with the lower bound at or below the margin
-        simplex[n] = w
+        _copy(w, simplex[n])
         n = _closest_on_simplex(simplex, n + 1, v, scratch, chosen)
         if n == 0:
             return False  # the origin is inside D: the cores overlap

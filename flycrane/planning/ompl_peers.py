@@ -36,6 +36,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from flycrane.planning.interfaces import Validity
 from flycrane.planning.result import (
     PlannerResult,
     PlannerStatistics,
@@ -44,7 +45,7 @@ from flycrane.planning.result import (
     TerminationCondition,
 )
 from flycrane.planning.state_space import ConfigurationSpace
-from flycrane.planning.trrt import STEP_FRACTION, TRRTConfig, Validity
+from flycrane.planning.trrt import STEP_FRACTION, TRRTConfig
 
 #: How often the parent polls the child for a result or a cancel request [s].
 POLL_INTERVAL = 0.05

@@ -7,6 +7,7 @@ cost-aware planners) and computes the path metrics.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -14,19 +15,23 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from flycrane.metrics import PathMetrics, path_metrics
+from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig
+from flycrane.planning.interfaces import CompiledChecker
 from flycrane.planning.ompl_peers import OmplPlanner
 from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
 from flycrane.planning.state_space import ConfigurationSpace
-from flycrane.planning.trrt import TRRT, TRRTConfig, Validity
+from flycrane.planning.trrt import TRRT, TRRTConfig
 from flycrane.quantities import MAX_LENGTH, Seed
 
-Algorithm = Literal["trrt", "rrt", "ompl-trrt", "ompl-rrt"]
+Algorithm = Literal["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt"]
 #: Planners that minimize the cost (their shortcuts must not add mechanical work).
-COST_AWARE: frozenset[str] = frozenset({"trrt", "ompl-trrt"})
+COST_AWARE: frozenset[str] = frozenset({"trrt", "bitrrt", "ompl-trrt"})
+#: Options of the unidirectional T-RRT that the bidirectional one has no use for.
+TRRT_ONLY = ("goal_bias", "goal_connection", "init_temperature", "refinement_ratio")
 
 
 class PlannerOptions(BaseModel):
@@ -56,6 +61,23 @@ class PlannerOptions(BaseModel):
         100, ge=0, le=100_000, strict=True, description="random shortcuts"
     )
 
+    @model_validator(mode="after")
+    def _options_of_the_algorithm(self) -> PlannerOptions:
+        unused = [name for name in TRRT_ONLY if name in self.model_fields_set]
+        if self.algorithm == "bitrrt" and unused:
+            raise ValueError(
+                f"{', '.join(unused)}: options of trrt and rrt; bitrrt grows two trees "
+                "and runs its transition test on log c (flycrane/planning/bitrrt.py)"
+            )
+        return self
+
+    def bitrrt_config(self) -> BiTRRTConfig:
+        return BiTRRTConfig(
+            step=self.step,
+            temperature_rate=self.temperature_rate,
+            cost_threshold=math.inf if self.cost_threshold is None else self.cost_threshold,
+        )
+
     def trrt_config(self) -> TRRTConfig:
         config = TRRTConfig(
             step=self.step,
@@ -73,8 +95,10 @@ class PlannerOptions(BaseModel):
         )
 
 
-def make_planner(space: ConfigurationSpace, validity: Validity, options: PlannerOptions):
+def make_planner(space: ConfigurationSpace, validity: CompiledChecker, options: PlannerOptions):
     """The planner object for ``options.algorithm`` (each has ``solve`` and ``name``)."""
+    if options.algorithm == "bitrrt":
+        return BiTRRT(space, validity, options.bitrrt_config())
     config = options.trrt_config()
     if options.algorithm == "ompl-rrt":
         return OmplPlanner(space, validity, "rrt", config)
@@ -95,7 +119,7 @@ class PlanningOutcome:
 
 def plan(
     space: ConfigurationSpace,
-    validity: Validity,
+    validity: CompiledChecker,
     start: NDArray[np.float64],
     goal: NDArray[np.float64],
     options: PlannerOptions,

@@ -48,12 +48,13 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.errors import FieldProblem, InputError
+from flycrane.planning.interfaces import Validity
 from flycrane.planning.result import (
     PlannerResult,
     PlannerStatistics,
@@ -65,22 +66,6 @@ from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.tree import Tree
 
 logger = logging.getLogger(__name__)
-
-
-class Validity(Protocol):
-    """What the planner needs to know about configurations (OMPL's validity roles)."""
-
-    def cost(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
-        """c(q) per configuration (N,), +inf where infeasible or out of bounds."""
-
-    def is_valid(self, q: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """Feasible, in bounds and collision-free, per configuration (N,)."""
-
-    def motion_is_valid(self, q_from: NDArray[np.float64], q_to: NDArray[np.float64]) -> bool:
-        """Every configuration of the local path q_from -> q_to is valid."""
-
-    def describe_invalid(self, q: NDArray[np.float64]) -> str:
-        """Why a configuration (9,) is invalid, for messages."""
 
 
 #: Default step as a fraction of the space's maximum extent (OMPL's RRT uses 1/5); the

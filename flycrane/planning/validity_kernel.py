@@ -136,7 +136,7 @@ class CompiledValidity:
             np.empty(6),
             np.empty(3),
             *self.compiled_scene.workspace(),
-            np.empty((2, 9)),
+            np.empty((3, 18)),  # configurations, embeddings, repair gradients
         )
 
     def states(self, q: np.ndarray, use_bounds: bool, work: tuple) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,255 @@
+"""Compiled pieces of a tree extension: embedding, nearest node, alpha repair, extend.
+
+One extension (:func:`extend`) is one compiled call: step from the near node towards a
+target along the local path, repair the formation (the alphas) at the new pose, check the
+new configuration and the motion to it (:mod:`flycrane.planning.validity_kernel`).
+
+Alpha repair. For a platform pose the three alphas are redundant: they change the drones'
+positions, hence the cost and the drones' and cables' collisions, not the load's. Starting
+from the near node's alphas (the extension's warm start), a few steps of descent on log c
+over the alphas, with finite differences and backtracking, move them towards the least
+cost that is collision-free (an invalid configuration counts as +inf, so the descent stops
+at obstacles and infeasibility). It is bounded (ALPHA_STEP per step, REPAIR_STEPS steps)
+so each extension moves the alphas by little, and the motion check covers the change.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from flycrane.collision_kernel import drone_free, pose_free
+from flycrane.planning.interpolation import interpolate_into
+from flycrane.planning.validity_kernel import motion_check, state_check
+
+#: Width of the embedding (position 3, scaled rotation matrix 9, alpha chords 6).
+EMBEDDING = 18
+#: Repair: finite-difference step and largest step of each descent step [rad].
+ALPHA_PROBE = 0.01
+ALPHA_STEP = 0.15
+#: Repair: descent steps per extension.
+REPAIR_STEPS = 2
+#: extend's outcomes: BLOCKED means a valid new configuration the straight motion cannot
+#: reach (see :func:`reshape_first`).
+FAILED, ADVANCED, REACHED, BLOCKED = 0, 1, 2, 3
+
+
+@numba.njit(cache=True, nogil=True)
+def embed_into(q, weights, out) -> None:
+    """E(q) of :meth:`ConfigurationSpace.embed` into out (18,)."""
+    phi, theta, sigma = q[3], q[4], q[5]
+    cp, sp, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+    cs, ss = math.cos(sigma - phi), math.sin(sigma - phi)
+    scale = weights[0] / math.sqrt(2.0)
+    out[0], out[1], out[2] = q[0], q[1], q[2]
+    out[3] = scale * (cp * ct * cs - sp * ss)
+    out[4] = scale * (-cp * ct * ss - sp * cs)
+    out[5] = scale * cp * st
+    out[6] = scale * (sp * ct * cs + cp * ss)
+    out[7] = scale * (-sp * ct * ss + cp * cs)
+    out[8] = scale * sp * st
+    out[9] = scale * -st * cs
+    out[10] = scale * st * ss
+    out[11] = scale * ct
+    for k in range(3):
+        out[12 + k] = weights[1] * math.cos(q[6 + k])
+        out[15 + k] = weights[1] * math.sin(q[6 + k])
+
+
+@numba.njit(cache=True, nogil=True)
+def nearest(embeddings, count, point) -> tuple[int, float]:
+    """Index of the row of embeddings[:count] nearest to point (18,), and the distance."""
+    best, index = math.inf, -1
+    for row in range(count):
+        total = 0.0
+        for a in range(EMBEDDING):
+            d = embeddings[row, a] - point[a]
+            total += d * d
+            if total >= best:
+                break
+        if total < best:
+            best, index = total, row
+    return index, math.sqrt(best)
+
+
+@numba.njit(cache=True, nogil=True)
+def _log_cost(q, model, work) -> float:
+    cost, valid = state_check(q, model, work, True)
+    return math.log(cost) if valid else math.inf
+
+
+@numba.njit(cache=True, nogil=True)
+def repair_alphas(q, model, work, gradient) -> float:
+    """Descend log c over q's alphas in place (module docstring); returns log c at the end
+    (+inf if q is invalid and no step found a valid configuration)."""
+    bounds = model[0]
+    low, high = bounds[7], bounds[8]
+    value = _log_cost(q, model, work)
+    if not value < math.inf:
+        return value
+    for _ in range(REPAIR_STEPS):
+        norm = 0.0
+        for k in range(3):
+            saved = q[6 + k]
+            probe = ALPHA_PROBE if saved + ALPHA_PROBE <= high else -ALPHA_PROBE
+            q[6 + k] = saved + probe
+            shifted = _log_cost(q, model, work)
+            q[6 + k] = saved
+            # A probe into an obstacle or infeasibility: push away from it.
+            slope = (shifted - value) / probe if shifted < math.inf else 1e3 * np.sign(probe)
+            gradient[k] = slope
+            norm += slope * slope
+        norm = math.sqrt(norm)
+        if norm == 0.0:
+            break
+        step = ALPHA_STEP
+        improved = False
+        for _ in range(4):  # backtracking
+            for k in range(3):
+                gradient[3 + k] = q[6 + k]
+                q[6 + k] = min(high, max(low, q[6 + k] - step * gradient[k] / norm))
+            trial = _log_cost(q, model, work)
+            if trial < value:
+                value, improved = trial, True
+                break
+            for k in range(3):
+                q[6 + k] = gradient[3 + k]
+            step *= 0.5
+        if not improved:
+            break
+    return value
+
+
+@numba.njit(cache=True, nogil=True)
+def _choose_alphas(near, target, out, model, work, scratch) -> bool:
+    """Start the repair from the least-cost valid of: the near node's alphas (the warm
+    start), the interpolated ones (out's), the target's; if none is valid,
+    :func:`choose_formation` near the near node's. False if nothing is valid."""
+    best = math.inf
+    for k in range(3):
+        scratch[6 + k] = out[6 + k]
+    for candidate in range(3):
+        for k in range(3):
+            if candidate == 0:
+                out[6 + k] = near[6 + k]
+            elif candidate == 1:
+                out[6 + k] = scratch[6 + k]
+            else:
+                out[6 + k] = target[6 + k]
+        value = _log_cost(out, model, work)
+        if value < best:
+            best = value
+            for k in range(3):
+                scratch[9 + k] = out[6 + k]
+    if best == math.inf:
+        return choose_formation(out, near[6:9], model, work, scratch)
+    for k in range(3):
+        out[6 + k] = scratch[9 + k]
+    return True
+
+
+#: Formation choice: alphas per drone scanned, and nearest free ones combined per drone.
+FORMATION_GRID = 16
+FORMATION_NEAREST = 3
+
+
+@numba.njit(cache=True, nogil=True)
+def choose_formation(q, preferred, model, work, scratch) -> bool:
+    """Alphas for q's pose when none of the usual candidates is valid (module docstring):
+    per drone, the FORMATION_NEAREST alphas of a FORMATION_GRID scan nearest to
+    ``preferred`` (3,) at which that drone and its cables touch nothing; of their
+    combinations, the valid one of least cost goes into q. False if none is valid."""
+    bounds, _, kin, scene, _ = model
+    collision_work = work[4:10]
+    low, high = bounds[7], bounds[8]
+    if not pose_free(q, kin, scene, collision_work):
+        return False
+    chosen = scratch[12:18]  # per drone: count of free alphas found, then the alphas
+    options = np.empty((3, FORMATION_NEAREST))
+    counts = np.zeros(3, dtype=np.int64)
+    for k in range(3):
+        free = np.empty(FORMATION_GRID)
+        distance = np.empty(FORMATION_GRID)
+        n = 0
+        for g in range(FORMATION_GRID):
+            q[6 + k] = low + (high - low) * g / (FORMATION_GRID - 1)
+            if drone_free(q, k, kin, scene, collision_work):
+                free[n] = q[6 + k]
+                distance[n] = abs(q[6 + k] - preferred[k])
+                n += 1
+        if n == 0:
+            return False
+        order = np.argsort(distance[:n])
+        counts[k] = min(n, FORMATION_NEAREST)
+        for m in range(counts[k]):
+            options[k, m] = free[order[m]]
+    best = math.inf
+    for i in range(counts[0]):
+        for j in range(counts[1]):
+            for m in range(counts[2]):
+                q[6], q[7], q[8] = options[0, i], options[1, j], options[2, m]
+                value = _log_cost(q, model, work)
+                if value < best:
+                    best = value
+                    chosen[0], chosen[1], chosen[2] = q[6], q[7], q[8]
+    q[6], q[7], q[8] = chosen[0], chosen[1], chosen[2]
+    return best < math.inf
+
+
+#: extend's repair modes: never; always (towards samples, whose alphas mean nothing);
+#: short of the target only (towards another tree's node, which must be reached exactly).
+NO_REPAIR, REPAIR, REPAIR_UNLESS_REACHED = 0, 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def extend(near, target, step, repair, resolution, model, work, out) -> tuple[int, float]:
+    """One extension from ``near`` towards ``target`` into ``out`` (9,): (outcome, cost).
+
+    The new configuration lies ``step`` (chordal) along the local path, or is the target if
+    closer; its alphas are repaired (warm start: the near node's alphas) as ``repair``
+    says. REACHED means ``out`` equals the target.
+    """
+    weights = model[4]
+    scratch = work[-1]
+    ea, eb = scratch[0, :EMBEDDING], scratch[1, :EMBEDDING]
+    embed_into(near, weights, ea)
+    embed_into(target, weights, eb)
+    distance = 0.0
+    for a in range(EMBEDDING):
+        distance += (ea[a] - eb[a]) ** 2
+    distance = math.sqrt(distance)
+    reached = distance <= step
+    interpolate_into(near, target, 1.0 if reached else step / distance, out)
+    if repair == REPAIR or (repair == REPAIR_UNLESS_REACHED and not reached):
+        reached = False
+        if not _choose_alphas(near, target, out, model, work, scratch[2]):
+            return FAILED, math.inf
+        if not repair_alphas(out, model, work, scratch[2]) < math.inf:
+            return FAILED, math.inf
+    cost, valid = state_check(out, model, work, True)
+    if not valid:
+        return FAILED, math.inf
+    if not motion_check(near, out, resolution, model, work, True, False):
+        return BLOCKED, cost
+    return (REACHED if reached else ADVANCED), cost
+
+
+@numba.njit(cache=True, nogil=True)
+def reshape_first(near, new, resolution, model, work, middle) -> float:
+    """The two motions near -> middle -> new, where middle is the near pose with new's
+    alphas: the formation changes in place, then the pose moves. Returns middle's cost if
+    middle and both motions are valid, else +inf. Where a passage only fits another
+    formation (a corridor), the straight motion enters it still reshaping; this one
+    reshapes before it moves."""
+    for k in range(9):
+        middle[k] = near[k] if k < 6 else new[k]
+    cost, valid = state_check(middle, model, work, True)
+    if not (
+        valid
+        and motion_check(near, middle, resolution, model, work, True, False)
+        and motion_check(middle, new, resolution, model, work, True, False)
+    ):
+        return math.inf
+    return cost
