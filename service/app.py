@@ -27,6 +27,7 @@ from service.errors import error_responses, install_error_handlers
 from service.jobs import JobManager
 from service.lifecycle import RETENTION_INTERVAL, DataDirLock, purge_expired
 from service.metrics import ServiceMetrics
+from service.migrate import upgrade_database
 from service.settings import Settings, get_settings
 from service.storage import TaskStore, make_engine
 
@@ -110,7 +111,9 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         lock = DataDirLock(settings.data_dir).acquire()
         settings.tasks_dir.mkdir(parents=True, exist_ok=True)
         url = settings.resolved_database_url
-        store = TaskStore(make_engine(url, settings.database_busy_timeout))
+        engine = make_engine(url, settings.database_busy_timeout)
+        upgrade_database(engine)  # before any worker opens it
+        store = TaskStore(engine)
         metrics = ServiceMetrics(store)
         factory = None if executor else (lambda: local_executor(settings.workers))
         jobs = JobManager(
