@@ -20,7 +20,7 @@ from fastapi.concurrency import run_in_threadpool
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from flycrane.execution import local_executor
+from flycrane.execution import executor_for
 from service.api.routes import health, presets, statics, tasks, view
 from service.deps import ServiceState, require_reader
 from service.errors import error_responses, install_error_handlers
@@ -115,15 +115,19 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         upgrade_database(engine)  # before any worker opens it
         store = TaskStore(engine)
         metrics = ServiceMetrics(store)
-        factory = None if executor else (lambda: local_executor(settings.workers))
+
+        def ours() -> Executor:
+            return executor_for(settings.dask_scheduler, settings.workers)
+
         jobs = JobManager(
             store,
-            executor or local_executor(settings.workers),
+            executor or ours(),
             url,
             settings.tasks_dir,
             settings.max_queued_tasks,
             metrics,
-            executor_factory=factory,
+            executor_factory=None if executor else ours,
+            shared_disk=settings.dask_scheduler is None,
         )
         state = ServiceState(settings, store, jobs, metrics)
         app.state.service = state

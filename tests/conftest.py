@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+import os
 from collections.abc import Iterator
 
 import numpy as np
@@ -81,3 +83,32 @@ def database_url_for(backend: str, request: pytest.FixtureRequest) -> str | None
 def database_url(backend: str, request: pytest.FixtureRequest) -> str | None:
     """A new empty database of this test's backend (:func:`database_url_for`)."""
     return database_url_for(backend, request)
+
+
+@pytest.fixture(scope="module")
+def dask_cluster() -> Iterator[str]:
+    """A Dask LocalCluster of two single-threaded worker processes on loopback (its
+    scheduler's address); closed at the end of the module, every worker process checked
+    gone by its PID."""
+    import psutil
+    from distributed import Client, LocalCluster
+
+    cluster = LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
+    try:
+        yield cluster.scheduler_address
+    finally:
+        with Client(cluster.scheduler_address, set_as_default=False) as client:
+            pids = list(client.run(os.getpid).values())
+        cluster.close(timeout=30)
+        processes = [psutil.Process(pid) for pid in pids if psutil.pid_exists(pid)]
+        _, alive = psutil.wait_procs(processes, timeout=10)
+        for process in alive:
+            process.kill()
+        assert not alive, f"Dask workers outlived their cluster: {[p.pid for p in alive]}"
