@@ -1,7 +1,7 @@
 """Path quality metrics of the paper's Table I: avgC, maxC, MW, IC.
 
-All are computed on the path resampled so that consecutive configurations are at most
-``resolution`` apart in the state-space distance (default 0.05, about 5 cm of drone travel;
+All are computed on the path discretized by the state space (its local paths cut into
+pieces at most ``resolution`` long) (default 0.05, about 5 cm of drone travel;
 every waypoint of the path is kept):
 
 - avgC: mean cost over the samples; maxC: largest cost;
@@ -27,16 +27,9 @@ METRICS_RESOLUTION = 0.05
 def resample_path(
     path: NDArray[np.float64], space: ConfigurationSpace, resolution: float = METRICS_RESOLUTION
 ) -> NDArray[np.float64]:
-    """Configurations along a path, at most ``resolution`` apart, waypoints kept, (K, 9)."""
-    path = np.atleast_2d(np.asarray(path, dtype=float))
-    if len(path) < 2:
-        return path.copy()
-    lengths = space.distance(path[:-1], path[1:])
-    pieces = [path[:1]]
-    for a, b, length in zip(path[:-1], path[1:], lengths, strict=True):
-        steps = max(1, int(np.ceil(length / resolution)))
-        pieces.append(space.interpolate(a, b, np.arange(1, steps + 1) / steps))
-    return np.concatenate(pieces)
+    """Configurations along a path, at most ``resolution`` apart along its local paths,
+    waypoints kept, (K, 9): :meth:`ConfigurationSpace.discretize_path`."""
+    return space.discretize_path(path, resolution)
 
 
 def mechanical_work(costs: NDArray[np.float64]) -> float:

@@ -20,6 +20,7 @@ full circle unless the scene narrows it), alphas uniform in their range.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,7 +28,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from flycrane.cable_system import CableSystem
 from flycrane.kinematics import drone_positions_in_platform_frame, matrix_from_tilt_torsion
-from flycrane.planning.interpolation import interpolate, wrap_angle
+from flycrane.planning.interpolation import (
+    discretize_into,
+    geodesic_lengths,
+    interpolate,
+    segment_count,
+    wrap_angle,
+)
 
 #: Width of the embedding E(q).
 EMBEDDING_SIZE = 3 + 9 + 6
@@ -100,6 +107,46 @@ class ConfigurationSpace:
     def interpolate(self, a: ArrayLike, b: ArrayLike, t: ArrayLike) -> NDArray[np.float64]:
         """The local path (see :mod:`flycrane.planning.interpolation`)."""
         return interpolate(a, b, t)
+
+    def path_length(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+        """Length of the local paths a -> b (row by row, broadcast), shape (N,): the
+        geodesic's, never below :meth:`distance`."""
+        a, b = np.broadcast_arrays(np.atleast_2d(a).astype(float), np.atleast_2d(b).astype(float))
+        out = np.empty(len(a))
+        geodesic_lengths(
+            np.ascontiguousarray(a),
+            np.ascontiguousarray(b),
+            self.rotation_weight,
+            self.alpha_weight,
+            out,
+        )
+        return out
+
+    def discretize(self, a: ArrayLike, b: ArrayLike, resolution: float) -> NDArray[np.float64]:
+        """The local path a -> b as configurations at most ``resolution`` apart along it,
+        both ends included, shape (K, 9) with K >= 2.
+
+        The one discretization of a motion: validity checks, smoothing, path metrics and
+        drone tracks all sample motions through it.
+        """
+        if not resolution > 0:
+            raise ValueError(f"resolution must be > 0, got {resolution}")
+        a = np.ascontiguousarray(a, dtype=float).reshape(9)
+        b = np.ascontiguousarray(b, dtype=float).reshape(9)
+        pieces = segment_count(a, b, resolution, self.rotation_weight, self.alpha_weight)
+        out = np.empty((pieces + 1, 9))
+        discretize_into(a, b, pieces, out)
+        return out
+
+    def discretize_path(self, path: ArrayLike, resolution: float) -> NDArray[np.float64]:
+        """A path's motions discretized (:meth:`discretize`), waypoints kept once, (K, 9)."""
+        path = np.atleast_2d(np.asarray(path, dtype=float))
+        if len(path) < 2:
+            return path.copy()
+        pieces = [path[:1]] + [
+            self.discretize(a, b, resolution)[1:] for a, b in itertools.pairwise(path)
+        ]
+        return np.concatenate(pieces)
 
     def contains(self, q: ArrayLike) -> NDArray[np.bool_]:
         """True where q lies inside the sampling bounds, shape (N,)."""

@@ -2,13 +2,20 @@
 
 OMPL's StateValidityChecker and MotionValidator roles for the FlyCrane. A configuration is
 valid when it lies in the scene's sampling bounds, its cost is finite (wrench- and
-thrust-feasible, J non-singular) and no body collides. Statics are checked first (a
-compiled kernel, ~1 us per configuration); collisions only for the feasible rest.
+thrust-feasible, J non-singular) and no body collides. Every check runs in compiled code
+(:mod:`flycrane.planning.validity_kernel`): bounds, then statics (~1 us), then collisions
+of the primitive shapes (:mod:`flycrane.collision_kernel`, ~1-3 us). python-fcl
+(:class:`~flycrane.collision.CollisionChecker`) remains the reference the kernel is tested
+against, the checker of triangle meshes (configurations the kernel finds free in a scene
+with meshes are checked by fcl as well), and the source of contact depths and clearances
+in messages.
 
-Motions are checked along the planner's local path (:mod:`flycrane.planning.interpolation`)
-at ``resolution`` in state-space distance (default 0.05: about 5 cm of drone travel,
-against 0.3 m drone spheres and obstacles at least centimetres thick), both end points
-included, stopping at the first invalid configuration.
+Motions are checked along the local path at ``resolution`` (default 0.05 of path length,
+:meth:`ConfigurationSpace.discretize`: about 5 cm of drone travel, against 0.3 m drone
+spheres and obstacles at least centimetres thick), both end points included.
+
+Not thread-safe: each checker owns the kernels' scratch; worker processes and threads build
+their own (pickling rebuilds it).
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from flycrane.errors import FlyCraneError
 from flycrane.feasibility import Violation, violations
 from flycrane.kinematics import COORDINATES, as_configurations
 from flycrane.planning.state_space import ConfigurationSpace
+from flycrane.planning.validity_kernel import CompiledValidity
 from flycrane.scene import SceneSpec
 from flycrane.statics import evaluate_statics
 
@@ -75,6 +83,9 @@ class ValidityChecker:
         self.system, self.scene, self.space, self.base_dir = system, scene, space, base_dir
         self.resolution = resolution
         self.collision = CollisionChecker(system, scene, base_dir)
+        self.compiled = CompiledValidity.build(system, scene, space)
+        self.work = self.compiled.workspace()
+        self.has_meshes = self.compiled.compiled_scene.has_meshes
 
     def __reduce__(self):
         # fcl objects do not pickle; worker processes rebuild the checker (milliseconds).
@@ -102,6 +113,13 @@ class ValidityChecker:
             self.system, self.scene.without(names), self.space, self.base_dir, self.resolution
         )
 
+    def _states(self, q: ArrayLike, use_bounds: bool) -> tuple[NDArray, NDArray]:
+        q = np.ascontiguousarray(as_configurations(q))
+        cost, valid = self.compiled.states(q, use_bounds, self.work)
+        if self.has_meshes and valid.any():
+            valid[valid] = self.collision.collision_free(q[valid])
+        return cost, valid
+
     def cost(self, q: ArrayLike) -> NDArray[np.float64]:
         """c(q) per configuration, +inf where infeasible or outside the bounds (N,)."""
         q = as_configurations(q)
@@ -111,28 +129,35 @@ class ValidityChecker:
 
     def is_valid(self, q: ArrayLike) -> NDArray[np.bool_]:
         """In bounds, feasible and collision-free, per configuration (N,)."""
-        q = as_configurations(q)
-        valid = np.isfinite(self.cost(q))
-        if valid.any():
-            valid[valid] = self.collision.collision_free(q[valid])
-        return valid
+        return self._states(q, use_bounds=True)[1]
+
+    def cost_and_validity(self, q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """(cost (N,), valid (N,)) in one pass: the cost is :meth:`cost`'s."""
+        return self._states(q, use_bounds=True)
 
     def is_safe(self, q: ArrayLike) -> NDArray[np.bool_]:
         """Feasible and collision-free, ignoring the sampling bounds (N,): what a flown
         configuration must be (the bounds only shape where the planner searches)."""
-        q = as_configurations(q)
-        safe = np.isfinite(configuration_cost(self.system, q))
-        if safe.any():
-            safe[safe] = self.collision.collision_free(q[safe])
-        return safe
+        return self._states(q, use_bounds=False)[1]
 
     def motion_is_valid(self, q_from: ArrayLike, q_to: ArrayLike) -> bool:
-        """Every configuration of the local path q_from -> q_to is valid."""
-        steps = max(1, int(np.ceil(self.space.distance(q_from, q_to)[0] / self.resolution)))
-        path = self.space.interpolate(q_from, q_to, np.linspace(0.0, 1.0, steps + 1))
-        if not np.all(np.isfinite(self.cost(path))):
-            return False
-        return self.collision.first_collision(path) is None
+        """Every configuration of the local path q_from -> q_to is valid, both ends
+        included."""
+        a = np.ascontiguousarray(q_from, dtype=float).reshape(9)
+        b = np.ascontiguousarray(q_to, dtype=float).reshape(9)
+        if self.has_meshes:
+            return bool(self.is_valid(self.space.discretize(a, b, self.resolution)).all())
+        return bool(self.is_valid(a[None])[0]) and self.compiled.motion(
+            a, b, self.resolution, self.work
+        )
+
+    def motions_are_valid(self, q_from: ArrayLike, q_to: ArrayLike) -> NDArray[np.bool_]:
+        """:meth:`motion_is_valid` of many motions (N, 9) -> (N,), in one compiled call."""
+        a = np.ascontiguousarray(as_configurations(q_from, "q_from"))
+        b = np.ascontiguousarray(as_configurations(q_to, "q_to"))
+        if self.has_meshes:
+            return np.array([self.motion_is_valid(x, y) for x, y in zip(a, b, strict=True)])
+        return self.compiled.motions(a, b, self.resolution, self.work)
 
     def explain(self, q: ArrayLike) -> InvalidReason:
         """Every reason why the configuration (9,) is invalid (empty if valid)."""

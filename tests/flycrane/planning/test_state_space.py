@@ -19,14 +19,14 @@ SPACE = ConfigurationSpace((-5, -5, 0), (5, 5, 10), 0.5, 0.3, 1.8, 2.0, 1.5)
 
 
 def test_interpolation_takes_angles_the_short_way():
-    a = np.array([0, 0, 0, 3.0, 0.1, -3.0, 3.1, 0.0, 0.0])
-    b = np.array([2, 0, 0, -3.0, 0.3, 3.0, -3.1, 0.0, 1.0])
+    a = np.array([0, 0, 0, 0.0, 0.2, -3.0, 3.1, 0.0, 0.0])
+    b = np.array([2, 0, 0, 0.0, 0.2, 3.0, -3.1, 0.0, 1.0])
     mid = interpolate(a, b, [0.5])[0]
     assert mid[0] == pytest.approx(1.0)
-    assert mid[4] == pytest.approx(0.2)  # tilt never wraps
-    assert abs(mid[3]) == pytest.approx(np.pi)  # 3.0 -> -3.0 passes through pi
-    assert abs(mid[5]) == pytest.approx(np.pi)
-    assert abs(mid[6]) == pytest.approx(np.pi)
+    assert mid[4] == pytest.approx(0.2)  # a torsion about the tilted axis keeps the tilt
+    assert abs(mid[5]) == pytest.approx(np.pi)  # -3.0 -> 3.0 passes through pi
+    assert abs(mid[6]) == pytest.approx(np.pi)  # so does alpha1, 3.1 -> -3.1
+    assert mid[8] == pytest.approx(0.5)
     np.testing.assert_allclose(interpolate(a, b, [0.0, 1.0]), np.stack([a, b]), atol=1e-15)
 
 

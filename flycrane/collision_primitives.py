@@ -1,0 +1,333 @@
+"""Compiled (numba) distance tests between convex primitives: the fast collision path.
+
+A shape is a convex *core* plus a margin: a sphere is a point with its radius, a capsule a
+segment with its radius, and boxes, cylinders and convex polytopes (the platform's prism)
+are their own cores with margin 0. Two shapes touch iff the distance between their cores is
+at most the sum of their margins.
+
+:func:`separated` answers that with GJK (Gilbert, Johnson, Keerthi 1988) on the cores'
+Minkowski difference D = A - B, iterating the closest point v of a simplex in D to the
+origin (sub-simplex search as in Ericson, *Real-Time Collision Detection*, 2005, 5.1). It
+decides from bounds, never from an estimate: for every w = s_D(-v) the plane through w
+normal to v bounds D, so ``v.w / |v|`` is a lower bound of the distance and ``|v|`` an
+upper bound. "Separated" is returned only when the lower bound exceeds the margin; when the
+upper bound falls to the margin, the simplex encloses the origin, the bounds meet within
+EPS_RELATIVE, or the iterations run out, the answer is "touching". So the test never calls
+touching shapes free; it calls separated shapes touching only within a relative 1e-10 of
+the margin (or within CONTACT_TOLERANCE of contact for margin-free pairs). Degenerate
+simplices (coincident or collinear points) take their lower-dimensional faces; the kernels
+use numpy's error model, so no arithmetic raises, and a NaN fails every bound test and ends
+as "touching".
+
+Shapes are rows of tables (centres (n, 3), rotations (n, 3, 3), sizes (n, 3), vertices
+(V, 3)), world frame, passed with their kind and row index (indexing whole tables, not
+slicing views, keeps the compiled calls free of reference counting): POINT at its centre;
+SEGMENT from its centre to its ``size`` row; BOX centre, axes (columns of the rotation),
+half sizes; CYLINDER centre, axes (its own z is the axis), size = (radius, half height, -);
+POLYTOPE the convex hull of the vertices.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+
+POINT, SEGMENT, BOX, CYLINDER, POLYTOPE = 0, 1, 2, 3, 4
+
+#: GJK stops, calling the shapes touching, when its bounds meet to this relative gap.
+EPS_RELATIVE = 1e-10
+#: Distances below this [m] count as contact for shapes without a margin (boxes against
+#: boxes): GJK's closest point reaches the origin only to rounding.
+CONTACT_TOLERANCE = 1e-9
+#: Rows of the (GJK_WORK, 3) scratch of :func:`separated`: simplex (4), v, w, two support
+#: points, a closest-point candidate, and 3 rows to compact the simplex through.
+GJK_WORK = 12
+#: Iteration cap; polytopes converge in a few steps, curved cores well within it.
+MAX_ITERATIONS = 64
+
+
+@numba.njit(cache=True, nogil=True, inline="always", error_model="numpy")
+def support(kind, row, centers, rots, sizes, verts, dx, dy, dz, out) -> None:
+    """The point of shape ``row`` of a table furthest along (dx, dy, dz), into out (3,)."""
+    if kind == POINT:
+        out[0], out[1], out[2] = centers[row, 0], centers[row, 1], centers[row, 2]
+    elif kind == SEGMENT:
+        a = centers[row, 0] * dx + centers[row, 1] * dy + centers[row, 2] * dz
+        b = sizes[row, 0] * dx + sizes[row, 1] * dy + sizes[row, 2] * dz
+        end = centers if a >= b else sizes
+        out[0], out[1], out[2] = end[row, 0], end[row, 1], end[row, 2]
+    elif kind == BOX or kind == CYLINDER:
+        lx = rots[row, 0, 0] * dx + rots[row, 1, 0] * dy + rots[row, 2, 0] * dz
+        ly = rots[row, 0, 1] * dx + rots[row, 1, 1] * dy + rots[row, 2, 1] * dz
+        lz = rots[row, 0, 2] * dx + rots[row, 1, 2] * dy + rots[row, 2, 2] * dz
+        if kind == BOX:
+            px = sizes[row, 0] if lx >= 0.0 else -sizes[row, 0]
+            py = sizes[row, 1] if ly >= 0.0 else -sizes[row, 1]
+            pz = sizes[row, 2] if lz >= 0.0 else -sizes[row, 2]
+        else:
+            radial = math.sqrt(lx * lx + ly * ly)
+            px = sizes[row, 0] * lx / radial if radial > 0.0 else 0.0
+            py = sizes[row, 0] * ly / radial if radial > 0.0 else 0.0
+            pz = sizes[row, 1] if lz >= 0.0 else -sizes[row, 1]
+        for a in range(3):
+            out[a] = (
+                centers[row, a] + rots[row, a, 0] * px + rots[row, a, 1] * py + rots[row, a, 2] * pz
+            )
+    else:
+        best, index = -math.inf, 0
+        for k in range(verts.shape[0]):
+            value = verts[k, 0] * dx + verts[k, 1] * dy + verts[k, 2] * dz
+            if value > best:
+                best, index = value, k
+        out[0], out[1], out[2] = verts[index, 0], verts[index, 1], verts[index, 2]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def bounds(kind, row, centers, rots, sizes, verts, margin, out, out_row) -> None:
+    """Axis-aligned bounds of shape ``row`` grown by ``margin``: out[out_row, 0] the low
+    corner, out[out_row, 1] the high one (exact for every kind)."""
+    for a in range(3):
+        if kind == POINT:
+            low = high = centers[row, a]
+        elif kind == SEGMENT:
+            low = min(centers[row, a], sizes[row, a])
+            high = max(centers[row, a], sizes[row, a])
+        elif kind == BOX:
+            half = (
+                abs(rots[row, a, 0]) * sizes[row, 0]
+                + abs(rots[row, a, 1]) * sizes[row, 1]
+                + abs(rots[row, a, 2]) * sizes[row, 2]
+            )
+            low, high = centers[row, a] - half, centers[row, a] + half
+        elif kind == CYLINDER:
+            axis = rots[row, a, 2]
+            half = sizes[row, 0] * math.sqrt(max(0.0, 1.0 - axis * axis)) + sizes[row, 1] * abs(
+                axis
+            )
+            low, high = centers[row, a] - half, centers[row, a] + half
+        else:
+            low, high = math.inf, -math.inf
+            for k in range(verts.shape[0]):
+                low, high = min(low, verts[k, a]), max(high, verts[k, a])
+        out[out_row, 0, a] = low - margin
+        out[out_row, 1, a] = high + margin
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _squared_gap(a, b) -> float:
+    return (b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _triangle(a, b, c, v) -> int:
+    """Closest point v of triangle abc to the origin; returns the kept vertices as bits
+    (1: a, 2: b, 4: c). Ericson 5.1.5 with p = 0; a degenerate triangle falls back to its
+    edges."""
+    ab0, ab1, ab2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    ac0, ac1, ac2 = c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    d1 = -(ab0 * a[0] + ab1 * a[1] + ab2 * a[2])
+    d2 = -(ac0 * a[0] + ac1 * a[1] + ac2 * a[2])
+    if d1 <= 0.0 and d2 <= 0.0:
+        v[0], v[1], v[2] = a[0], a[1], a[2]
+        return 1
+    d3 = -(ab0 * b[0] + ab1 * b[1] + ab2 * b[2])
+    d4 = -(ac0 * b[0] + ac1 * b[1] + ac2 * b[2])
+    if d3 >= 0.0 and d4 <= d3:
+        v[0], v[1], v[2] = b[0], b[1], b[2]
+        return 2
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        t = d1 / (d1 - d3) if d1 > d3 else 0.0  # d1 = d3 = 0: a and b coincide
+        v[0], v[1], v[2] = a[0] + t * ab0, a[1] + t * ab1, a[2] + t * ab2
+        return 3
+    d5 = -(ab0 * c[0] + ab1 * c[1] + ab2 * c[2])
+    d6 = -(ac0 * c[0] + ac1 * c[1] + ac2 * c[2])
+    if d6 >= 0.0 and d5 <= d6:
+        v[0], v[1], v[2] = c[0], c[1], c[2]
+        return 4
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        t = d2 / (d2 - d6) if d2 > d6 else 0.0
+        v[0], v[1], v[2] = a[0] + t * ac0, a[1] + t * ac1, a[2] + t * ac2
+        return 5
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and d4 - d3 >= 0.0 and d5 - d6 >= 0.0:
+        span = (d4 - d3) + (d5 - d6)
+        t = (d4 - d3) / span if span > 0.0 else 0.0
+        v[0] = b[0] + t * (c[0] - b[0])
+        v[1] = b[1] + t * (c[1] - b[1])
+        v[2] = b[2] + t * (c[2] - b[2])
+        return 6
+    total = va + vb + vc
+    if total <= 0.0:  # collinear corners: the nearest of the three edges
+        best, kept = math.inf, 0
+        for first, second, bits in ((a, b, 3), (a, c, 5), (b, c, 6)):
+            e0, e1, e2 = second[0] - first[0], second[1] - first[1], second[2] - first[2]
+            length = e0 * e0 + e1 * e1 + e2 * e2
+            t = 0.0
+            if length > 0.0:
+                t = min(1.0, max(0.0, -(e0 * first[0] + e1 * first[1] + e2 * first[2]) / length))
+            p0, p1, p2 = first[0] + t * e0, first[1] + t * e1, first[2] + t * e2
+            if p0 * p0 + p1 * p1 + p2 * p2 < best:
+                best, kept = p0 * p0 + p1 * p1 + p2 * p2, bits
+                v[0], v[1], v[2] = p0, p1, p2
+        return kept
+    s, t = vb / total, vc / total
+    v[0] = a[0] + s * ab0 + t * ac0
+    v[1] = a[1] + s * ab1 + t * ac1
+    v[2] = a[2] + s * ab2 + t * ac2
+    return 7
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _closest_on_simplex(simplex, n, v, scratch, chosen) -> int:
+    """Closest point v of the simplex (n points) to the origin; the simplex is reduced to
+    the smallest face holding it. Returns the new size, 0 if the origin is inside."""
+    if n == 1:
+        v[:] = simplex[0]
+        return 1
+    if n == 2:
+        a, b = simplex[0], simplex[1]
+        e0, e1, e2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+        length = e0 * e0 + e1 * e1 + e2 * e2
+        t = -(e0 * a[0] + e1 * a[1] + e2 * a[2]) / length if length > 0.0 else 0.0
+        if t <= 0.0:
+            v[:] = a
+            return 1
+        if t >= 1.0:
+            v[:] = b
+            simplex[0] = b
+            return 1
+        v[0], v[1], v[2] = a[0] + t * e0, a[1] + t * e1, a[2] + t * e2
+        return 2
+    if n == 3:
+        bits = _triangle(simplex[0], simplex[1], simplex[2], v)
+        return _keep(simplex, chosen, bits, 0, 1, 2)
+    # Tetrahedron: the origin is inside unless it lies outside some face's plane.
+    a, b, c, d = simplex[0], simplex[1], simplex[2], simplex[3]
+    best, kept_bits, kept_face = math.inf, 0, -1
+    faces = ((0, 1, 2, 3), (0, 2, 3, 1), (0, 3, 1, 2), (1, 3, 2, 0))
+    scale = math.sqrt(_squared_gap(a, b) * _squared_gap(a, c) * _squared_gap(a, d))
+    for face in range(4):
+        i, j, k, opposite = faces[face]
+        p, q, r, o = simplex[i], simplex[j], simplex[k], simplex[opposite]
+        n0 = (q[1] - p[1]) * (r[2] - p[2]) - (q[2] - p[2]) * (r[1] - p[1])
+        n1 = (q[2] - p[2]) * (r[0] - p[0]) - (q[0] - p[0]) * (r[2] - p[2])
+        n2 = (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
+        side_origin = -(n0 * p[0] + n1 * p[1] + n2 * p[2])
+        side_opposite = n0 * (o[0] - p[0]) + n1 * (o[1] - p[1]) + n2 * (o[2] - p[2])
+        flat = abs(side_opposite) <= 1e-12 * scale  # a degenerate tetrahedron: try every face
+        if flat or side_origin * side_opposite < 0.0:
+            bits = _triangle(p, q, r, scratch)
+            distance = _dot(scratch, scratch)
+            if distance < best:
+                best, kept_bits, kept_face = distance, bits, face
+                v[:] = scratch
+    if kept_face < 0:
+        return 0
+    i, j, k, _ = faces[kept_face]
+    return _keep(simplex, chosen, kept_bits, i, j, k)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _keep(simplex, chosen, bits, i, j, k) -> int:
+    """Compact simplex points i, j, k selected by bits (1, 2, 4) to the front (through
+    ``chosen``, 3 x 3 scratch, as the indices may cross)."""
+    n = 0
+    for bit, index in ((1, i), (2, j), (4, k)):
+        if bits & bit:
+            chosen[n] = simplex[index]
+            n += 1
+    for m in range(n):
+        simplex[m] = chosen[m]
+    return n
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def separated(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) -> bool:
+    """True iff the cores are certainly more than ``margin`` apart (module docstring).
+    ``work``: (GJK_WORK, 3) scratch, so that the test allocates nothing."""
+    simplex, chosen = work[0:4], work[9:12]
+    v, w, pa, pb, scratch = work[4], work[5], work[6], work[7], work[8]
+    support(ka, ra, ca, rota, sa, va, 1.0, 0.0, 0.0, pa)
+    support(kb, rb, cb, rotb, sb, vb, -1.0, 0.0, 0.0, pb)
+    v[:] = pa - pb
+    simplex[0] = v
+    n = 1
+    limit = max(margin, CONTACT_TOLERANCE) ** 2
+    for _ in range(MAX_ITERATIONS):
+        vv = _dot(v, v)
+        if vv <= limit:
+            return False
+        support(ka, ra, ca, rota, sa, va, -v[0], -v[1], -v[2], pa)
+        support(kb, rb, cb, rotb, sb, vb, v[0], v[1], v[2], pb)
+        w[:] = pa - pb
+        vw = _dot(v, w)
+        if vw > 0.0 and vw * vw > margin * margin * vv:
+            return True  # the lower bound v.w / |v| exceeds the margin
+        if vv - vw <= EPS_RELATIVE * vv:
+            return False  # converged with the lower bound at or below the margin
+        simplex[n] = w
+        n = _closest_on_simplex(simplex, n + 1, v, scratch, chosen)
+        if n == 0:
+            return False  # the origin is inside D: the cores overlap
+    return False
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def point_distance_squared(point, kind, row, centers, rots, sizes) -> float:
+    """Squared distance from a point (3,) to the core of shape ``row`` of a table, for a
+    point, a segment, a solid box or a solid cylinder (exact); -1 for other kinds."""
+    if kind == POINT or kind == SEGMENT:
+        r0 = point[0] - centers[row, 0]
+        r1 = point[1] - centers[row, 1]
+        r2 = point[2] - centers[row, 2]
+        t = 0.0
+        if kind == SEGMENT:
+            e0 = sizes[row, 0] - centers[row, 0]
+            e1 = sizes[row, 1] - centers[row, 1]
+            e2 = sizes[row, 2] - centers[row, 2]
+            length = e0 * e0 + e1 * e1 + e2 * e2
+            if length > 0.0:
+                t = min(1.0, max(0.0, (r0 * e0 + r1 * e1 + r2 * e2) / length))
+            r0, r1, r2 = r0 - t * e0, r1 - t * e1, r2 - t * e2
+        return r0 * r0 + r1 * r1 + r2 * r2
+    if kind != BOX and kind != CYLINDER:
+        return -1.0
+    l0 = l1 = l2 = 0.0
+    for a in range(3):
+        d = point[a] - centers[row, a]
+        l0 += rots[row, a, 0] * d
+        l1 += rots[row, a, 1] * d
+        l2 += rots[row, a, 2] * d
+    if kind == BOX:
+        e0 = max(0.0, abs(l0) - sizes[row, 0])
+        e1 = max(0.0, abs(l1) - sizes[row, 1])
+        e2 = max(0.0, abs(l2) - sizes[row, 2])
+        return e0 * e0 + e1 * e1 + e2 * e2
+    radial = max(0.0, math.sqrt(l0 * l0 + l1 * l1) - sizes[row, 0])
+    axial = max(0.0, abs(l2) - sizes[row, 1])
+    return radial * radial + axial * axial
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def shapes_touch(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) -> bool:
+    """Whether the cores of shape ``ra`` of table a and shape ``rb`` of table b (each table:
+    centres, rotations, sizes, vertices) are within ``margin``: closed forms for a point
+    against a point, a segment, a box or a cylinder (exact), GJK (:func:`separated`) for
+    every other pair."""
+    if ka == POINT:
+        d = point_distance_squared(ca[ra], kb, rb, cb, rotb, sb)
+        if d >= 0.0:
+            return d <= margin * margin
+    elif kb == POINT:
+        d = point_distance_squared(cb[rb], ka, ra, ca, rota, sa)
+        if d >= 0.0:
+            return d <= margin * margin
+    return not separated(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work)

@@ -1,0 +1,159 @@
+"""Compiled validity of states and motions: bounds, statics (cost) and collisions in one pass.
+
+A :class:`CompiledValidity` bundles what the kernels need (sampling bounds, the statics
+model, the compiled scene, the metric's weights) as one tuple of arrays, so that a motion
+check, or a planner's extension, is one compiled call with no Python per configuration.
+
+Order of the checks per configuration: bounds (a few comparisons), statics (~1 us, and most
+random configurations fail it), collisions (~1-3 us). Motions are discretized by the state
+space's one discretization (:func:`flycrane.planning.interpolation.segment_count`) and their
+configurations checked end first, then in bisection order (strides 2^k, 2^(k-1), ...): an
+invalid stretch is found after a few checks wherever it lies, as OMPL's
+DiscreteMotionValidator does.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from flycrane.cable_system import CableSystem
+from flycrane.collision_kernel import CompiledScene, collision_free_row, kinematic_arrays
+from flycrane.cost import CostForm
+from flycrane.planning.interpolation import interpolate_into, segment_count
+from flycrane.planning.state_space import ConfigurationSpace
+from flycrane.scene import SceneSpec
+from flycrane.statics_kernel import STATICS_WORK, statics_model, statics_row
+
+
+@numba.njit(cache=True, nogil=True)
+def in_bounds(q, bounds) -> bool:
+    """q inside the sampling bounds: [low xyz, high xyz, max tilt, alpha range, sigma range]."""
+    for a in range(3):
+        if not bounds[a] <= q[a] <= bounds[3 + a]:
+            return False
+    if q[4] > bounds[6]:
+        return False
+    for k in range(6, 9):
+        if not bounds[7] <= q[k] <= bounds[8]:
+            return False
+    span = bounds[10] - bounds[9]
+    offset = (q[5] - bounds[9]) % (2.0 * math.pi)
+    # 1e-12: the range's own end points must pass after wrapping round-off
+    return offset <= span + 1e-12 or offset >= 2.0 * math.pi - 1e-12
+
+
+@numba.njit(cache=True, nogil=True)
+def state_check(q, model, work, use_bounds) -> tuple[float, bool]:
+    """(cost, valid) of one configuration; the cost is +inf outside the bounds (when used)
+    and where infeasible, and valid means finite cost and no collision."""
+    bounds, smodel, kin, scene, _ = model
+    statics_work, f0, v, m, collision_work = work[0], work[1], work[2], work[3], work[4:10]
+    if use_bounds and not in_bounds(q, bounds):
+        return math.inf, False
+    cost = statics_row(q, smodel, f0, v, m, statics_work)
+    if not cost < math.inf:
+        return cost, False
+    return cost, collision_free_row(q, kin, scene, collision_work)
+
+
+@numba.njit(cache=True, nogil=True)
+def _states(q, model, work, use_bounds, cost, valid) -> None:
+    for row in range(q.shape[0]):
+        cost[row], valid[row] = state_check(q[row], model, work, use_bounds)
+
+
+@numba.njit(cache=True, nogil=True)
+def motion_check(a, b, resolution, model, work, use_bounds, check_start) -> bool:
+    """Whether every configuration of the discretized local path a -> b is valid (module
+    docstring); a, the start, is checked only with ``check_start`` (tree nodes are valid)."""
+    weights = model[4]
+    pieces = segment_count(a, b, resolution, weights[0], weights[1])
+    q = work[-1][0]
+    if check_start and not state_check(a, model, work, use_bounds)[1]:
+        return False
+    interpolate_into(a, b, 1.0, q)
+    if not state_check(q, model, work, use_bounds)[1]:
+        return False
+    stride = 1
+    while stride * 2 < pieces:
+        stride *= 2
+    while stride >= 1:
+        for k in range(stride, pieces, 2 * stride):
+            interpolate_into(a, b, k / pieces, q)
+            if not state_check(q, model, work, use_bounds)[1]:
+                return False
+        stride //= 2
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _motions(a, b, resolution, model, work, use_bounds, out) -> None:
+    for row in range(a.shape[0]):
+        out[row] = motion_check(a[row], b[row], resolution, model, work, use_bounds, True)
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledValidity:
+    """The kernels' inputs for one system, scene and state space (module docstring)."""
+
+    model: tuple
+    compiled_scene: CompiledScene
+
+    @classmethod
+    def build(
+        cls, system: CableSystem, scene: SceneSpec, space: ConfigurationSpace
+    ) -> CompiledValidity:
+        bounds = np.array(
+            [
+                *space.position_low,
+                *space.position_high,
+                space.max_tilt,
+                space.alpha_low,
+                space.alpha_high,
+                space.sigma_low,
+                space.sigma_high,
+            ]
+        )
+        compiled = CompiledScene.build(system, scene)
+        model = (
+            bounds,
+            statics_model(system, CostForm.NORMALIZED),
+            kinematic_arrays(system),
+            compiled.arrays,
+            np.array([space.rotation_weight, space.alpha_weight]),
+        )
+        return cls(model, compiled)
+
+    def workspace(self) -> tuple:
+        """Scratch for one caller (kernels write into it; not shared between threads)."""
+        return (
+            np.empty(STATICS_WORK),
+            np.empty(6),
+            np.empty(6),
+            np.empty(3),
+            *self.compiled_scene.workspace(),
+            np.empty((2, 9)),
+        )
+
+    def states(self, q: np.ndarray, use_bounds: bool, work: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """(cost (N,), valid (N,)) of configurations (N, 9); collisions with meshes are not
+        checked here (:attr:`CompiledScene.has_meshes`)."""
+        cost, valid = np.empty(len(q)), np.empty(len(q), dtype=np.bool_)
+        _states(q, self.model, work, use_bounds, cost, valid)
+        return cost, valid
+
+    def motion(
+        self, a: np.ndarray, b: np.ndarray, resolution: float, work: tuple, use_bounds: bool = True
+    ) -> bool:
+        return bool(motion_check(a, b, resolution, self.model, work, use_bounds, False))
+
+    def motions(
+        self, a: np.ndarray, b: np.ndarray, resolution: float, work: tuple, use_bounds: bool = True
+    ) -> np.ndarray:
+        out = np.empty(len(a), dtype=np.bool_)
+        _motions(a, b, resolution, self.model, work, use_bounds, out)
+        return out
