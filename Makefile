@@ -4,7 +4,7 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: run test test-slow bench lint clean browser
+.PHONY: run test test-slow bench lint clean browser postgres
 
 $(BIN)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,25 +16,35 @@ $(BIN)/.installed: pyproject.toml
 run: $(BIN)/.installed
 	$(BIN)/flycrane plan --out out/rescue
 
-# Debian's Chromium for the viewer's browser tests (tests/service/test_viewer_browser.py),
-# installed once where apt-get can run (as root, or through passwordless sudo). Where it
-# cannot, this says so and the browser tests skip with the reason; nothing else depends on it.
-CHROMIUM := /usr/bin/chromium
-browser:
-	@if [ ! -x $(CHROMIUM) ]; then \
+# Debian packages the tests need, installed once where apt-get can run (as root, or through
+# passwordless sudo). Where they cannot be installed, this says so and the tests that need
+# them skip with the reason; nothing else depends on them.
+# $(call apt_install,PACKAGE,PROBE,WHAT SKIPS): install PACKAGE unless `ls PROBE` succeeds.
+define apt_install
+	@if ! ls $(2) >/dev/null 2>&1; then \
 	  if [ "$$(id -u)" = 0 ]; then sudo=""; \
 	  elif command -v sudo >/dev/null && sudo -n true 2>/dev/null; then sudo="sudo -n"; \
-	  else echo "make: cannot install chromium (not root, no passwordless sudo): browser tests will skip"; exit 0; fi; \
-	  echo "make: installing Debian's chromium for the browser tests"; \
+	  else echo "make: cannot install $(1) (not root, no passwordless sudo): $(3) will skip"; exit 0; fi; \
+	  echo "make: installing Debian's $(1) for the tests"; \
 	  export DEBIAN_FRONTEND=noninteractive; \
-	  { $$sudo apt-get install -y -qq chromium >/dev/null 2>&1 \
-	    || { $$sudo apt-get update -qq && $$sudo apt-get install -y -qq chromium >/dev/null; }; } \
-	  || echo "make: apt-get could not install chromium: browser tests will skip"; \
+	  { $$sudo apt-get install -y -qq $(1) >/dev/null 2>&1 \
+	    || { $$sudo apt-get update -qq && $$sudo apt-get install -y -qq $(1) >/dev/null; }; } \
+	  || echo "make: apt-get could not install $(1): $(3) will skip"; \
 	fi
+endef
+
+# Chromium for the viewer's browser tests (tests/service/test_viewer.py).
+browser:
+	$(call apt_install,chromium,/usr/bin/chromium,browser tests)
+
+# PostgreSQL's server for the storage and service tests on PostgreSQL (tests/postgres.py
+# starts a private one for the test session).
+postgres:
+	$(call apt_install,postgresql,/usr/lib/postgresql/*/bin/initdb,PostgreSQL tests)
 
 # The whole default test suite (CI runs exactly this through .ci/run): the static checks
 # first (lint), then pytest.
-test: lint browser
+test: lint browser postgres
 	$(BIN)/python -m pytest
 
 # Long soak and statistical cases, kept out of the default run.

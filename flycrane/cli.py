@@ -90,7 +90,7 @@ def _cmd_system(args: argparse.Namespace) -> int:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     from flycrane.benchmark import format_table, run_benchmark, summarize, write_results
-    from flycrane.execution import local_executor
+    from flycrane.execution import executor_for
     from flycrane.planning.planners import PlannerOptions
     from flycrane.planning.problem import PlanningProblem
     from flycrane.profiles import path_profile, plot_profile_bands
@@ -102,7 +102,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     out = Path(args.out)
     total = len(args.scenes) * len(args.planners) * args.runs
     records = []
-    with local_executor(args.workers) as executor:
+    with executor_for(args.cluster, args.workers) as executor:
         for record in run_benchmark(
             executor, args.scenes, args.planners, args.runs, args.budget, base
         ):
@@ -180,6 +180,12 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     bench.add_argument("--budget", type=float, default=60.0, help="seconds per run")
     bench.add_argument("--step", type=float, help="extension step (default: planner default)")
     bench.add_argument("--workers", type=int, help="processes (default: all CPUs)")
+    bench.add_argument(
+        "--cluster",
+        metavar="ADDRESS",
+        help="run on the Dask cluster whose scheduler is at ADDRESS (tcp://host:8786) "
+        "instead of local processes",
+    )
     bench.add_argument("--out", default="bench-results", help="directory for the results")
     bench.set_defaults(handler=_cmd_bench)
 

@@ -1,9 +1,11 @@
 """Where CPU-heavy jobs (planning runs, benchmark seeds) execute: one small interface.
 
 The interface is :class:`concurrent.futures.Executor` (``submit(fn, *args) -> Future``).
-The default is a local process pool; a distributed engine takes over by passing its own
-Executor (for example ``dask.distributed.Client(...).get_executor()``). Jobs and their
-arguments must therefore be picklable top-level functions and plain data.
+The default is a local process pool; :func:`dask_executor` runs the same jobs on a Dask
+distributed cluster (:class:`DaskExecutor`: a scheduler and workers on any hosts, or a
+``LocalCluster``), and :func:`executor_for` picks one from an address. Jobs and their
+arguments must therefore be picklable top-level functions and plain data, and a job must not
+assume that its caller's disk is its own.
 
 Processes start with the *spawn* method: fork would copy the parent's threads and locks
 (the service runs an event loop and database threads), and OMPL must run in a fresh
@@ -69,6 +71,40 @@ def local_executor(workers: int | None = None) -> Executor:
         initializer=exit_with_parent,
         initargs=(os.getpid(),),
     )
+
+
+class DaskExecutor(Executor):
+    """Jobs on the Dask cluster at ``address`` (``tcp://host:8786``), through the client's
+    concurrent.futures interface, with the client it owns.
+
+    Every submission is a task of its own (``pure=False``: two equal submissions, e.g. a
+    task run again after a restart, must both run). A cancelled future that is already
+    running goes on in its worker: jobs must stop themselves (the service's poll their
+    task's cancel flag). When a worker dies, the scheduler runs its tasks again on another
+    worker (up to its ``allowed-failures``), so a job may start twice.
+    """
+
+    def __init__(self, address: str, timeout: float = 30.0) -> None:
+        from distributed import Client
+
+        self.address = address
+        self.client = Client(address, timeout=timeout, set_as_default=False)
+        self._executor = self.client.get_executor(pure=False)
+
+    def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
+        return self._executor.submit(fn, *args, **kwargs)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self._executor.shutdown(wait=wait and not cancel_futures)
+        self.client.close()
+
+
+def executor_for(address: str | None, workers: int | None = None) -> Executor:
+    """The local process pool of ``workers`` for no address (or ``"local"``), the Dask cluster
+    at a scheduler address (``tcp://host:port``, ``tls://...``) otherwise."""
+    if not address or address == "local":
+        return local_executor(workers)
+    return DaskExecutor(address)
 
 
 def stop_executor(executor: Executor) -> None:

@@ -20,13 +20,14 @@ from fastapi.concurrency import run_in_threadpool
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from flycrane.execution import local_executor
+from flycrane.execution import executor_for
 from service.api.routes import health, presets, statics, tasks, view
 from service.deps import ServiceState, require_reader
 from service.errors import error_responses, install_error_handlers
 from service.jobs import JobManager
 from service.lifecycle import RETENTION_INTERVAL, DataDirLock, purge_expired
 from service.metrics import ServiceMetrics
+from service.migrate import upgrade_database
 from service.settings import Settings, get_settings
 from service.storage import TaskStore, make_engine
 
@@ -110,17 +111,23 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         lock = DataDirLock(settings.data_dir).acquire()
         settings.tasks_dir.mkdir(parents=True, exist_ok=True)
         url = settings.resolved_database_url
-        store = TaskStore(make_engine(url, settings.database_busy_timeout))
+        engine = make_engine(url, settings.database_busy_timeout)
+        upgrade_database(engine)  # before any worker opens it
+        store = TaskStore(engine)
         metrics = ServiceMetrics(store)
-        factory = None if executor else (lambda: local_executor(settings.workers))
+
+        def ours() -> Executor:
+            return executor_for(settings.dask_scheduler, settings.workers)
+
         jobs = JobManager(
             store,
-            executor or local_executor(settings.workers),
+            executor or ours(),
             url,
             settings.tasks_dir,
             settings.max_queued_tasks,
             metrics,
-            executor_factory=factory,
+            executor_factory=None if executor else ours,
+            shared_disk=settings.dask_scheduler is None,
         )
         state = ServiceState(settings, store, jobs, metrics)
         app.state.service = state

@@ -7,19 +7,24 @@ only submits, counts what is in flight (to refuse work beyond ``max_queued_tasks
 503) and, if a worker dies without writing a result, marks the task failed.
 
 Any :class:`concurrent.futures.Executor` runs the jobs (the local process pool by default,
-see :mod:`flycrane.execution`), so a distributed executor can take over unchanged as long as
-its workers reach the same database and artifact directory.
+a Dask cluster with ``FLYCRANE_EXECUTOR=dask://host:port``, see :mod:`flycrane.execution`).
+Its workers must reach the database; they need not share the service's disk: without
+``shared_disk`` a job plans into a scratch directory of its worker and returns the artifacts
+with its outcome, and the service writes them into the task's directory before it writes
+the final status (so a task reads ``done`` only once its files are there).
 """
 
 from __future__ import annotations
 
 import logging
+import math
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import BrokenExecutor, Executor, Future
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -31,6 +36,11 @@ from service.storage import TaskRecord, TaskStatus, TaskStore, make_engine
 
 logger = logging.getLogger(__name__)
 
+#: Why a task failed when the process running it died (SIGKILL, the OOM killer, a crash).
+WORKER_DIED = (
+    "the worker process running this task died (killed, e.g. out of memory); the task is "
+    "not retried, since it may be what killed it"
+)
 #: How often a running job looks at its cancel flag and writes progress [s].
 POLL_INTERVAL = 0.25
 PROGRESS_INTERVAL = 0.5
@@ -44,24 +54,57 @@ class JobSpec:
     attempt: int
     request: dict[str, Any]
     database_url: str
-    task_dir: str
+    task_dir: str | None  #: where to write the artifacts; None: return them (module docstring)
 
 
-def run_job(spec: JobSpec) -> str:
-    """Run one task in this (worker) process; returns the final status.
+@dataclass(frozen=True)
+class JobOutcome:
+    """How a job ended. ``files`` (artifact path relative to the task's directory -> bytes)
+    is set when the job was not given a directory: the final status is then the caller's
+    to write (``written`` False), after the files."""
+
+    status: TaskStatus
+    result: dict[str, Any] | None = None
+    error: str | None = None
+    files: dict[str, bytes] | None = None
+    written: bool = True
+
+
+def run_job(spec: JobSpec) -> JobOutcome:
+    """Run one task in this (worker) process.
 
     Imports the pipeline here so that the API process never loads planners or numba.
     """
+    store = TaskStore(make_engine(spec.database_url))
+    record = store.get(spec.task_id)
+    if record is None or record.status.finished or record.attempt != spec.attempt:
+        return JobOutcome(record.status if record else TaskStatus.FAILED)
+    if record.status is not TaskStatus.QUEUED:
+        # Started before at this attempt: the worker running it died and the executor (Dask
+        # reschedules a lost worker's tasks) runs it again. Not retried: it may be what
+        # killed the worker.
+        final = store.finish(spec.task_id, spec.attempt, TaskStatus.FAILED, None, WORKER_DIED)
+        return JobOutcome(final.status if final else TaskStatus.FAILED, error=WORKER_DIED)
+    if spec.task_dir is not None:
+        return _run(spec, store, Path(spec.task_dir))
+    with tempfile.TemporaryDirectory(prefix=f"flycrane-{spec.task_id}-") as scratch:
+        outcome = _run(spec, store, Path(scratch))
+        files = {
+            path.relative_to(scratch).as_posix(): path.read_bytes()
+            for path in sorted(Path(scratch).rglob("*"))
+            if path.is_file()
+        }
+    return replace(outcome, files=files)
+
+
+def _run(spec: JobSpec, store: TaskStore, task_dir: Path) -> JobOutcome:
+    """Plan and export the task into ``task_dir``; its final status is written here only
+    when ``task_dir`` is the task's own (``spec.task_dir``)."""
     from flycrane.planning.result import PlanningProgress
     from missions.pipeline import run_task
     from missions.task import TaskSpec, require_served_task
 
-    store = TaskStore(make_engine(spec.database_url))
-    record = store.get(spec.task_id)
-    if record is None or record.status.finished or record.attempt != spec.attempt:
-        return record.status.value if record else TaskStatus.FAILED.value
-    stop_flag = record.cancel_requested
-    checked = time.monotonic()
+    stop_flag, checked = False, -math.inf  # the first call reads the flag
     written_at, written_stage = 0.0, ""
 
     def should_stop() -> bool:
@@ -92,27 +135,22 @@ def run_job(spec: JobSpec) -> str:
         written_at, written_stage = now, stage
 
     if should_stop():
-        store.finish(
+        final = store.finish(
             spec.task_id, spec.attempt, TaskStatus.CANCELLED, None, "cancelled before start"
         )
-        return TaskStatus.CANCELLED.value
+        return JobOutcome(final.status if final else TaskStatus.CANCELLED)
     try:
         task = TaskSpec.model_validate(spec.request)
         require_served_task(task)  # rows written by an older version are checked again
-        outcome = run_task(task, spec.task_dir, progress=progress, should_stop=should_stop)
+        outcome = run_task(task, task_dir, progress=progress, should_stop=should_stop)
         status, result, error = TaskStatus(outcome.status), outcome.as_dict(), outcome.reason
     except Exception as failure:
         logger.exception("task %s failed", spec.task_id)
         status, result, error = TaskStatus.FAILED, None, f"{type(failure).__name__}: {failure}"
+    if spec.task_dir is None:
+        return JobOutcome(status, result, error or None, written=False)
     final = store.finish(spec.task_id, spec.attempt, status, result, error or None)
-    return final.status.value if final else status.value
-
-
-#: Why a task failed when the process running it died (SIGKILL, the OOM killer, a crash).
-WORKER_DIED = (
-    "the worker process running this task died (killed, e.g. out of memory); the task is "
-    "not retried, since it may be what killed it"
-)
+    return JobOutcome(final.status if final else status, result, error or None)
 
 
 class JobManager:
@@ -122,7 +160,12 @@ class JobManager:
     fails with ``BrokenProcessPool`` and it accepts no more. The manager then starts a new
     pool (``executor_factory``), fails the task that was running with :data:`WORKER_DIED`
     and queues the others again on the new pool. Without a factory (an executor the caller
-    owns) the tasks fail with the reason and :attr:`healthy` turns false.
+    owns) the tasks fail with the reason and :attr:`healthy` turns false. On a Dask cluster
+    a lost worker's tasks are run again by the scheduler, and :func:`run_job` fails the one
+    that had started with the same reason.
+
+    ``shared_disk`` False: the executor's workers cannot write the tasks' directories; jobs
+    return their artifacts and the manager writes them (module docstring).
     """
 
     def __init__(
@@ -133,12 +176,12 @@ class JobManager:
         tasks_dir: Path,
         capacity: int,
         metrics: ServiceMetrics,
-        job: Callable[[JobSpec], str] = run_job,
         executor_factory: Callable[[], Executor] | None = None,
+        shared_disk: bool = True,
     ) -> None:
         self.store, self.executor, self.database_url = store, executor, database_url
-        self.tasks_dir, self.capacity, self.metrics, self.job = tasks_dir, capacity, metrics, job
-        self.executor_factory = executor_factory
+        self.tasks_dir, self.capacity, self.metrics = tasks_dir, capacity, metrics
+        self.executor_factory, self.shared_disk = executor_factory, shared_disk
         self.replaced_pools = 0
         self._futures: dict[str, tuple[Future, Executor]] = {}  #: task id -> its job
         self._broken: Executor | None = None
@@ -203,14 +246,14 @@ class JobManager:
             record.attempt,
             record.request,
             self.database_url,
-            str(self.task_dir(record.id)),
+            str(self.task_dir(record.id)) if self.shared_disk else None,
         )
         with self._lock:
             future, executor = None, self.executor
             for _ in range(2):  # a pool found broken here is replaced once
                 executor = self.executor
                 try:
-                    future = executor.submit(self.job, spec)
+                    future = executor.submit(run_job, spec)
                     break
                 except (BrokenExecutor, RuntimeError):  # broken, or shut down
                     if not self._replace(executor):
@@ -224,14 +267,17 @@ class JobManager:
                     headers={"Retry-After": "30"},
                 )
             self._futures[record.id] = (future, executor)
-        future.add_done_callback(partial(self._finished, record.id, executor))
+        future.add_done_callback(partial(self._finished, spec, executor))
 
     def cancel(self, task_id: str) -> TaskRecord | None:
         """Ask a task to stop: a queued one is dropped, a running one stops at its next poll."""
         record = self.store.update(task_id, cancel_requested=True)
         with self._lock:
             future, _ = self._futures.get(task_id, (None, None))
-        if future is not None and future.cancel():
+        # Only a job not yet started may be dropped: a Dask future is cancelled even while
+        # it runs (its worker goes on), and the job then stops itself at its next poll.
+        queued = record is not None and record.status is TaskStatus.QUEUED
+        if future is not None and queued and future.cancel():
             record = self.store.update(
                 task_id, status=TaskStatus.CANCELLED, error="cancelled while queued"
             )
@@ -282,7 +328,8 @@ class JobManager:
             self.replaced_pools += 1
             return True
 
-    def _finished(self, task_id: str, executor: Executor, future: Future) -> None:
+    def _finished(self, spec: JobSpec, executor: Executor, future: Future) -> None:
+        task_id = spec.task_id
         with self._lock:
             if self._futures.get(task_id, (None,))[0] is future:
                 del self._futures[task_id]
@@ -292,17 +339,38 @@ class JobManager:
         failure = future.exception()
         if isinstance(failure, BrokenExecutor):
             self._worker_died(task_id, executor)
-        elif failure is not None:  # the job could not even start (e.g. unpicklable)
+        elif failure is not None:  # the job could not start (unpicklable), or its workers
+            # kept dying (Dask's KilledWorker)
             self.store.update(
                 task_id,
                 status=TaskStatus.FAILED,
                 error=f"worker failed: {type(failure).__name__}: {failure}",
             )
+        else:
+            self._write_returned(spec, future.result())
         record = self.store.get(task_id)
         if record and record.result:
             seconds = record.result.get("planner_statistics", {}).get("time")
             if seconds is not None:
                 self.metrics.planning_seconds.observe(seconds)
+
+    def _write_returned(self, spec: JobSpec, outcome: JobOutcome) -> None:
+        """A job without a directory returned its artifacts: write them, then its status."""
+        if outcome.written:
+            return
+        status, result, error = outcome.status, outcome.result, outcome.error
+        task_dir = self.task_dir(spec.task_id).resolve()
+        try:
+            for name, data in (outcome.files or {}).items():
+                path = (task_dir / name).resolve()
+                if not path.is_relative_to(task_dir):  # a worker's name cannot point elsewhere
+                    raise OSError(f"artifact {name!r} would be outside the task's directory")
+                path.parent.mkdir(parents=True, exist_ok=True)
+                path.write_bytes(data)
+        except OSError as failure:
+            logger.error("task %s: artifacts not stored: %s", spec.task_id, failure)
+            status, result, error = TaskStatus.FAILED, None, f"artifacts not stored: {failure}"
+        self.store.finish(spec.task_id, spec.attempt, status, result, error)
 
     def _worker_died(self, task_id: str, broken: Executor) -> None:
         """A job of the broken pool ``broken``: the one that was running fails with the

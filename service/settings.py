@@ -49,6 +49,13 @@ class Settings(BaseSettings):
         description="how long a request waits for a locked database before 503 [s]",
     )
     workers: int = Field(1, ge=1, le=256, description="planning worker processes")
+    executor: str = Field(
+        "local",
+        description="where tasks run: 'local' (a pool of `workers` processes) or a Dask "
+        "cluster, 'dask://host:port' (its scheduler; also tcp:// or tls://). Its workers "
+        "must reach database_url (PostgreSQL, not the local SQLite file); artifacts come back "
+        "with the results, no shared disk is assumed",
+    )
     max_queued_tasks: int = Field(
         32, ge=1, description="tasks queued or running at once; more are refused with 503"
     )
@@ -105,6 +112,22 @@ class Settings(BaseSettings):
                 "whitespace (unset the variable to run without authentication)"
             )
         return value
+
+    @field_validator("executor")
+    @classmethod
+    def _executor_address(cls, value: str) -> str:
+        scheme, _, rest = value.partition("://")
+        if value != "local" and not (scheme in ("dask", "tcp", "tls") and rest):
+            raise ValueError("must be 'local' or a Dask scheduler address, dask://host:port")
+        return value
+
+    @property
+    def dask_scheduler(self) -> str | None:
+        """The Dask scheduler's address (``tcp://host:port``), None for the local pool."""
+        if self.executor == "local":
+            return None
+        scheme, _, rest = self.executor.partition("://")
+        return f"tcp://{rest}" if scheme == "dask" else self.executor
 
     @model_validator(mode="after")
     def _read_token_needs_api_token(self) -> Settings:

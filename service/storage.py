@@ -85,6 +85,10 @@ class _Base(DeclarativeBase):
     pass
 
 
+#: The tables as the code reads them; ``service/migrations`` makes a database match them.
+metadata = _Base.metadata
+
+
 class TaskRow(_Base):
     __tablename__ = "tasks"
 
@@ -165,8 +169,8 @@ class TaskStore:
     """Repository of tasks and uploads."""
 
     def __init__(self, engine: Engine) -> None:
+        """A store on a database at the head revision (:func:`service.migrate.upgrade_database`)."""
         self.engine = engine
-        _Base.metadata.create_all(engine)
         self._sessions = sessionmaker(engine, expire_on_commit=False)
 
     @contextmanager

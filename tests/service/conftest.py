@@ -18,9 +18,14 @@ TEST_HOST = "testserver"
 
 
 @contextmanager
-def running_service(data_dir: Path, **settings) -> Iterator[TestClient]:
-    """The service with its lifespan (database, worker pool, resumption) running."""
+def running_service(
+    data_dir: Path, database_url: str | None = None, **settings
+) -> Iterator[TestClient]:
+    """The service with its lifespan (database, worker pool, resumption) running, on the
+    database at ``database_url`` (default: SQLite in ``data_dir``)."""
     settings.setdefault("allowed_hosts", (TEST_HOST,))
+    if database_url is not None:
+        settings["database_url"] = database_url
     app = create_app(Settings(data_dir=data_dir, workers=1, **settings))
     with TestClient(app) as client:
         yield client

@@ -20,6 +20,7 @@ from missions.formats import mission_from_json
 from missions.mavlink import Fleet, MockAutopilot, MockConfig, RetryPolicy, SimClock
 from missions.mavlink.mock_config import Geodetic
 from missions.parameter_file import parse_parameter_file
+from tests.conftest import database_url_for
 from tests.missions.mavlink.conftest import free_udp_port
 from tests.service.conftest import running_service, wait_finished, wait_status
 
@@ -32,9 +33,10 @@ def data_dir(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def done(data_dir):
-    """A service that has planned Rescue once (the real pipeline in a real worker)."""
-    with running_service(data_dir) as client:
+def done(data_dir, backend, request):
+    """A service that has planned Rescue once (the real pipeline in a real worker), on each
+    database backend in turn."""
+    with running_service(data_dir, database_url=database_url_for(backend, request)) as client:
         accepted = client.post("/v1/tasks", json=RESCUE)
         assert accepted.status_code == 202, accepted.text
         task = wait_finished(client, accepted.json()["id"])
@@ -202,11 +204,11 @@ def test_upload_refusals(done):
     assert (after["status"], after["result"]) == (before["status"], before["result"])
 
 
-def test_cancel_stops_a_running_planner(tmp_path):
+def test_cancel_stops_a_running_planner(tmp_path, database_url):
     # The Puzzle without tilt has no path (tests/flycrane/test_scene.py): still planning.
     level = tomllib.loads((SCENES_DIR / "puzzle.toml").read_text(encoding="utf-8"))
     level["bounds"]["max_tilt"] = 1e-3
-    with running_service(tmp_path) as client:
+    with running_service(tmp_path, database_url=database_url) as client:
         accepted = client.post("/v1/tasks", json={"scene": level, "planner": {"time_budget": 300}})
         task_id = accepted.json()["id"]
         wait_status(client, task_id, {"planning"})
@@ -257,15 +259,15 @@ def test_goal_as_a_platform_pose_gets_the_alphas_of_least_cost(tmp_path):
     assert goal[:6] == pytest.approx([0.0, 0.0, 8.45, 0.0, 0.0, 0.0])
 
 
-def test_tasks_survive_a_restart(tmp_path):
+def test_tasks_survive_a_restart(tmp_path, database_url):
     # A second instance on the same data directory (once the first has stopped: one server
     # per directory) serves the finished task and its files, and a task that was queued
     # when the first stopped is resumed and completed.
-    with running_service(tmp_path) as client:
+    with running_service(tmp_path, database_url=database_url) as client:
         accepted = client.post("/v1/tasks", json=RESCUE).json()["id"]
         assert wait_finished(client, accepted)["status"] == "done"
         queued = client.post("/v1/tasks", json={**RESCUE, "name": "interrupted"}).json()["id"]
-    with running_service(tmp_path) as client:
+    with running_service(tmp_path, database_url=database_url) as client:
         assert client.get(f"/v1/tasks/{accepted}").json()["status"] == "done"
         summary = client.get(f"/v1/tasks/{accepted}/artifacts/summary.json").json()
         assert summary["status"] == "done"

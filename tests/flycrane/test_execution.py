@@ -1,0 +1,71 @@
+"""Benchmark runs on a Dask cluster of separate worker processes give, seed for seed, what
+the local process pool gives (planning is deterministic per seed)."""
+
+from __future__ import annotations
+
+import csv
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from flycrane.benchmark import run_benchmark
+from flycrane.execution import DaskExecutor, executor_for, local_executor
+
+#: Columns that depend on the seed only (times depend on the machine).
+SEEDED = ("scene", "planner", "seed", "status", "nodes", "attempts", "avg_cost", "max_cost")
+
+
+def records_by_seed(executor) -> dict:
+    with executor:
+        records = run_benchmark(executor, ["rescue"], ["trrt", "rrt"], 3, 30.0)
+        return {(r.scene, r.planner, r.seed): r for r in records}
+
+
+def test_the_cluster_runs_each_seed_as_the_local_pool_does(dask_cluster):
+    on_cluster = records_by_seed(executor_for(dask_cluster))
+    local = records_by_seed(local_executor(2))
+    assert on_cluster.keys() == local.keys() and len(local) == 6
+    for key, record in local.items():
+        other = on_cluster[key]
+        assert record.status == "exact_solution", key
+        assert [getattr(other, c) for c in SEEDED] == [getattr(record, c) for c in SEEDED], key
+        assert other.path == record.path, key
+
+
+def test_the_jobs_ran_in_the_cluster_workers(dask_cluster):
+    with DaskExecutor(dask_cluster) as executor:
+        pids = {executor.submit(os.getpid).result(timeout=60) for _ in range(8)}
+        workers = set(executor.client.run(os.getpid).values())
+    assert pids <= workers and os.getpid() not in pids
+
+
+def test_bench_command_on_the_cluster(dask_cluster, tmp_path: Path):
+    def bench(out: Path, *where: str) -> list[dict]:
+        command = [sys.executable, "-m", "flycrane.cli", "bench", "--scenes", "rescue",
+                   "--planners", "trrt", "--runs", "2", "--budget", "30", "--out", str(out),
+                   *where]  # fmt: skip
+        subprocess.run(command, check=True, capture_output=True, timeout=300)
+        with (out / "runs.csv").open() as f:
+            return [{c: row[c] for c in SEEDED} for row in csv.DictReader(f)]
+
+    assert bench(tmp_path / "cluster", "--cluster", dask_cluster) == bench(
+        tmp_path / "local", "--workers", "2"
+    )
+
+
+def test_an_unreachable_cluster_is_a_message_not_a_traceback(tmp_path: Path):
+    command = [sys.executable, "-m", "flycrane.cli", "bench", "--scenes", "rescue", "--runs",
+               "1", "--out", str(tmp_path), "--cluster", "tcp://127.0.0.1:9"]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert "tcp://127.0.0.1:9" in done.stderr and "Traceback" not in done.stderr
+
+
+@pytest.mark.parametrize("address", [None, "", "local"])
+def test_no_address_is_the_local_pool(address):
+    with executor_for(address, 1) as executor:
+        assert not isinstance(executor, DaskExecutor)
+        assert executor.submit(os.getpid).result(timeout=60) != os.getpid()
