@@ -19,7 +19,8 @@ extensions (shorter than ``frontier_threshold``) beyond ``frontier_ratio`` of th
 exploring ones. As the paper (Devaurs et al.), each tree keeps its own temperature, so a
 tree stuck behind a climb does not cool the other.
 
-FlyCrane-specific, each kept because it measured better (BENCHMARKS.md, "Planner v2"):
+FlyCrane-specific, each kept because it measured better (BENCHMARKS.md, "Planner v2",
+"What each FlyCrane-specific choice buys"):
 
 - Alpha repair (``repair_alphas``): the alphas of every new node are moved towards the least
   collision-free cost from the near node's alphas (a bounded descent on log c). The sampled
@@ -30,7 +31,8 @@ FlyCrane-specific, each kept because it measured better (BENCHMARKS.md, "Planner
 - Transition test on log c (``log_cost``): the normalized cost spans 1e7-1e11 along one
   path, so a climb worth accepting in a valley (x2) and one out of a cliff (x2) differ by
   orders of magnitude in c and not at all in log c.
-- Narrow-passage sampling (``sampler``): see :mod:`flycrane.planning.samplers`.
+- Narrow-passage sampling (``sampler``, :mod:`flycrane.planning.samplers`): available,
+  not yet measured against uniform, so ``uniform`` is the default.
 
 Both trees start at the task's start and goal; a path always ends exactly at the goal.
 """
