@@ -47,3 +47,14 @@ def wait_status(
             return task
         time.sleep(poll)
     raise AssertionError(f"task {task_id} never reached {statuses} in {timeout} s: {task}")
+
+
+def wait_progress(client, task_id: str, timeout: float = 60.0) -> dict:
+    """The first progress report with planner figures (written every 0.5 s)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        progress = client.get(f"/v1/tasks/{task_id}").json()["progress"] or {}
+        if "nodes" in progress:
+            return progress
+        time.sleep(0.1)
+    raise AssertionError(f"no planner progress for {task_id}")

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import os
 import signal
-import time
 import tomllib
 
 import pytest
@@ -15,7 +14,7 @@ from distributed import Client
 
 from flycrane.scene import SCENES_DIR
 from service.jobs import WORKER_DIED
-from tests.service.conftest import running_service, wait_finished, wait_status
+from tests.service.conftest import running_service, wait_finished, wait_progress, wait_status
 
 RESCUE = {"name": "rescue on dask", "planner": {"seed": 0, "time_budget": 60}}
 
@@ -37,16 +36,6 @@ def service(dask_cluster, postgres_server, tmp_path_factory):
         yield client, data_dir
 
 
-def wait_planning_progress(client, task_id: str, timeout: float = 60.0) -> dict:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        progress = client.get(f"/v1/tasks/{task_id}").json()["progress"] or {}
-        if "nodes" in progress:
-            return progress
-        time.sleep(0.1)
-    raise AssertionError(f"no planner progress for {task_id}")
-
-
 def test_a_task_runs_on_the_cluster_and_its_artifacts_come_back(service):
     client, data_dir = service
     task_id = client.post("/v1/tasks", json=RESCUE).json()["id"]
@@ -64,7 +53,7 @@ def test_progress_and_cancel_reach_a_job_on_another_process(service):
     client, _ = service
     task_id = client.post("/v1/tasks", json=unsolvable(300)).json()["id"]
     wait_status(client, task_id, {"planning"})
-    progress = wait_planning_progress(client, task_id)
+    progress = wait_progress(client, task_id)
     assert progress["nodes"] >= 1 and progress["elapsed"] > 0
     assert client.delete(f"/v1/tasks/{task_id}").json()["cancel_requested"]
     task = wait_finished(client, task_id, timeout=30)
@@ -81,7 +70,7 @@ def test_the_time_budget_holds_on_a_worker(service):
 def test_a_worker_killed_mid_task_fails_it_and_later_tasks_succeed(service, dask_cluster):
     client, _ = service
     task_id = client.post("/v1/tasks", json=unsolvable(300)).json()["id"]
-    wait_planning_progress(client, task_id)
+    wait_progress(client, task_id)
     with Client(dask_cluster, set_as_default=False) as peer:
         busy = [worker for worker, keys in peer.processing().items() if keys]
         assert len(busy) == 1, peer.processing()

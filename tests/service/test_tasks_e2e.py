@@ -6,7 +6,6 @@ from __future__ import annotations
 import io
 import json
 import socket
-import time
 import tomllib
 import zipfile
 
@@ -22,7 +21,7 @@ from missions.mavlink.mock_config import Geodetic
 from missions.parameter_file import parse_parameter_file
 from tests.conftest import database_url_for
 from tests.missions.mavlink.conftest import free_udp_port
-from tests.service.conftest import running_service, wait_finished, wait_status
+from tests.service.conftest import running_service, wait_finished, wait_progress, wait_status
 
 RESCUE = {"name": "rescue e2e", "planner": {"seed": 0, "time_budget": 60}}
 
@@ -219,17 +218,6 @@ def test_cancel_stops_a_running_planner(tmp_path, database_url):
         task = wait_finished(client, task_id, timeout=30)
         assert task["status"] == "cancelled"
         assert task["result"]["planner_status"] == "cancelled"
-
-
-def wait_progress(client, task_id: str, timeout: float = 30.0) -> dict:
-    """The first progress report with planner figures (written every 0.5 s)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        progress = client.get(f"/v1/tasks/{task_id}").json()["progress"] or {}
-        if "nodes" in progress:
-            return progress
-        time.sleep(0.1)
-    raise AssertionError(f"no planner progress for {task_id}")
 
 
 def test_goal_as_a_platform_pose_gets_the_alphas_of_least_cost(tmp_path):
