@@ -74,6 +74,7 @@ from flycrane.planning.result import (
 )
 from flycrane.planning.samplers import Sampler, make_sampler
 from flycrane.planning.state_space import ConfigurationSpace
+from flycrane.planning.tree import path_from_root
 
 logger = logging.getLogger(__name__)
 
@@ -166,11 +167,7 @@ class _Tree:
         return index
 
     def path_to(self, index: int) -> NDArray[np.float64]:
-        chain = []
-        while index >= 0:
-            chain.append(index)
-            index = int(self.parent[index])
-        return self.q[chain[::-1]].copy()
+        return path_from_root(self.q, self.parent, index)
 
 
 class BiTRRT:

@@ -14,6 +14,15 @@ from numpy.typing import NDArray
 from flycrane.planning.state_space import EMBEDDING_SIZE, ConfigurationSpace
 
 
+def path_from_root(q: NDArray[np.float64], parent: NDArray[np.int64], index: int) -> NDArray:
+    """Configurations ``q`` from the root (parent -1) to node ``index``, shape (M, 9)."""
+    chain = []
+    while index >= 0:
+        chain.append(index)
+        index = int(parent[index])
+    return q[chain[::-1]].copy()
+
+
 class Tree:
     """A rooted tree of configurations with their costs."""
 
@@ -59,8 +68,4 @@ class Tree:
 
     def path_to(self, index: int) -> NDArray[np.float64]:
         """Configurations from the root to node ``index``, shape (M, 9)."""
-        chain = []
-        while index >= 0:
-            chain.append(index)
-            index = int(self.parent[index])
-        return self.q[chain[::-1]].copy()
+        return path_from_root(self.q, self.parent, index)
