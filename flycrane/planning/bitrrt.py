@@ -65,6 +65,7 @@ from flycrane.planning.extension_kernel import (
     reshape_first,
 )
 from flycrane.planning.interfaces import CompiledChecker
+from flycrane.planning.local_prototype import perturb_into
 from flycrane.planning.result import (
     PlannerResult,
     PlannerStatistics,
@@ -102,6 +103,15 @@ class BiTRRTConfig:
     #: docstring); False: T-RRT's test on every climb
     free_below_endpoints: bool = True
     sampler: SamplerName = "uniform"
+    local_share: float = 0.0
+    local_radius: float = 0.5
+    balance: bool = False
+    rotate_share: float = 0.0
+    other_share: float = 0.0
+    partial: float = 0.0
+    cell_select: bool = False
+    cell_size: float = 0.25
+    adaptive_radius: bool = False
     init_temperature: float | None = None  #: None: 0.1 (log c) or 1e-6 c(root) (c)
     temperature_rate: float = 0.1  #: T *= exp(T_rate) after a refused climb (OMPL)
     cost_range_fraction: float = 0.1
@@ -150,6 +160,11 @@ class _Tree:
         self.weights = weights
         self.low = self.high = cost
         self.temperature = temperature
+        self.radius = np.empty(256)
+        self.cells: dict = {}
+        self.cell_keys: list = []
+        self.cell_size = getattr(self, 'cell_size', 0.25)
+        self.root_radius = getattr(self, 'root_radius', 1.0)
         self.add(root, -1, cost)
 
     def add(self, q: NDArray, parent: int, cost: float) -> int:
@@ -158,7 +173,15 @@ class _Tree:
             self.embedding = np.concatenate([self.embedding, np.empty_like(self.embedding)])
             self.parent = np.concatenate([self.parent, np.empty_like(self.parent)])
             self.cost = np.concatenate([self.cost, np.empty_like(self.cost)])
+            self.radius = np.concatenate([self.radius, np.empty_like(self.radius)])
         index = self.size
+        self.radius[index] = self.radius[parent] if parent >= 0 else self.root_radius
+        key = (int(q[0] // self.cell_size), int(q[1] // self.cell_size), int(q[2] // self.cell_size))
+        members = self.cells.get(key)
+        if members is None:
+            self.cells[key] = members = []
+            self.cell_keys.append(key)
+        members.append(index)
         self.q[index] = q
         embed_into(self.q[index], self.weights, self.embedding[index])
         self.parent[index], self.cost[index] = parent, cost
@@ -240,6 +263,7 @@ class BiTRRT:
             checker.compiled.model,
             checker.work,
             out,
+            cfg.partial,
         )
         if outcome == BLOCKED and cfg.reshape_first:
             middle = np.empty(9)
@@ -327,22 +351,56 @@ class BiTRRT:
         self.free_level = float(max(cost)) if cfg.free_below_endpoints else -math.inf
         for root, c in ((start, cost[0]), (goal, cost[1])):
             t0 = cfg.init_temperature or (0.1 if cfg.log_cost else 1e-6 * float(c))
-            trees.append(_Tree(root, float(c), self.space_weights, t0))
+            trees.append(_Tree.__new__(_Tree))
+            trees[-1].cell_size = cfg.cell_size
+            trees[-1].root_radius = cfg.local_radius
+            _Tree.__init__(trees[-1], root, float(c), self.space_weights, t0)
         sampler: Sampler = make_sampler(cfg.sampler, self.space, self.validity, seed, start)
         out = np.empty(9)
         rng = np.random.default_rng([seed, 2])
         current, next_report, gap = 0, cfg.progress_interval, math.inf
         while (stop := termination()) is None:
             counts["X"] += 1
+            if cfg.balance:
+                current = 0 if trees[0].size <= trees[1].size else 1
             tree, other = trees[current], trees[1 - current]
-            target = sampler.next()
+            u = rng.random()
+            local = u < cfg.local_share + cfg.other_share
+            if local:
+                if u < cfg.other_share:
+                    chosen = rng.integers(other.size)
+                    node = other.q[chosen]
+                elif cfg.cell_select:
+                    members = tree.cells[tree.cell_keys[rng.integers(len(tree.cell_keys))]]
+                    chosen = members[rng.integers(len(members))]
+                else:
+                    chosen = rng.integers(tree.size)
+                if u >= cfg.other_share:
+                    node = tree.q[chosen]
+                noise = np.empty(9)
+                r = cfg.local_radius
+                noise[:3] = rng.normal(0, r / math.sqrt(3), 3)
+                noise[3:6] = rng.normal(0, r / math.sqrt(3) / self.space.rotation_weight, 3)
+                noise[6:] = rng.normal(0, r / math.sqrt(3) / self.space.alpha_weight, 3)
+                target = np.empty(9)
+                perturb_into(node, noise, self.validity.compiled.model[0], target)
+            else:
+                target = sampler.next()
             near, _ = nearest(tree.embedding, tree.size, self._embed(target))
-            if rng.random() < cfg.translate_share:
+            mode = rng.random()
+            if mode < cfg.translate_share:
                 target = np.concatenate([target[:3], tree.q[near, 3:]])
+            elif mode < cfg.translate_share + cfg.rotate_share:
+                target = np.concatenate([tree.q[near, :3], target[3:]])
             repair = cfg.repair_alphas and rng.random() < cfg.repair_share
             outcome, index = self._grow(
                 tree, near, target, REPAIR if repair else NO_REPAIR, counts, out
             )  # fmt: skip
+            if cfg.adaptive_radius:
+                if outcome == FAILED:
+                    tree.radius[near] = max(0.05, 0.7 * tree.radius[near])
+                else:
+                    tree.radius[near] = min(cfg.local_radius, 1.5 * tree.radius[near])
             if outcome != FAILED:
                 new = tree.q[index].copy()
                 _, gap_now = nearest(other.embedding, other.size, tree.embedding[index])

@@ -22,7 +22,7 @@ import numpy as np
 
 from flycrane.collision_kernel import drone_free, pose_free
 from flycrane.planning.interpolation import interpolate_into
-from flycrane.planning.validity_kernel import motion_check, state_check
+from flycrane.planning.validity_kernel import motion_check, motion_last_valid, state_check
 
 #: Width of the embedding (position 3, scaled rotation matrix 9, alpha chords 6).
 EMBEDDING = 18
@@ -204,7 +204,7 @@ NO_REPAIR, REPAIR, REPAIR_UNLESS_REACHED = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def extend(near, target, step, repair, resolution, model, work, out) -> tuple[int, float]:
+def extend(near, target, step, repair, resolution, model, work, out, partial=0.0) -> tuple[int, float]:
     """One extension from ``near`` towards ``target`` into ``out`` (9,): (outcome, cost).
 
     The new configuration lies ``step`` (chordal) along the local path, or is the target if
@@ -229,11 +229,22 @@ def extend(near, target, step, repair, resolution, model, work, out) -> tuple[in
         if not repair_alphas(out, model, work, scratch[2]) < math.inf:
             return FAILED, math.inf
     cost, valid = state_check(out, model, work, True)
+    if valid and motion_check(near, out, resolution, model, work, True, False):
+        return (REACHED if reached else ADVANCED), cost
+    if partial > 0.0:
+        t = motion_last_valid(near, out, resolution, model, work, True)
+        if t * min(distance, step) >= partial:
+            end = scratch[2, :9]
+            for k in range(9):
+                end[k] = out[k]
+            interpolate_into(near, end, t, out)
+            cost, valid = state_check(out, model, work, True)
+            if valid:
+                return ADVANCED, cost
+        return FAILED, math.inf
     if not valid:
         return FAILED, math.inf
-    if not motion_check(near, out, resolution, model, work, True, False):
-        return BLOCKED, cost
-    return (REACHED if reached else ADVANCED), cost
+    return BLOCKED, cost
 
 
 @numba.njit(cache=True, nogil=True)

@@ -91,6 +91,20 @@ def motion_check(a, b, resolution, model, work, use_bounds, check_start) -> bool
 
 
 @numba.njit(cache=True, nogil=True)
+def motion_last_valid(a, b, resolution, model, work, use_bounds) -> float:
+    """Fraction t of the local path a -> b up to which every discretized configuration is
+    valid (a, a tree node, is taken as valid): 1.0 if all are, else the last valid one's."""
+    weights = model[4]
+    pieces = segment_count(a, b, resolution, weights[0], weights[1])
+    q = work[-1][0]
+    for k in range(1, pieces + 1):
+        interpolate_into(a, b, k / pieces, q)
+        if not state_check(q, model, work, use_bounds)[1]:
+            return (k - 1) / pieces
+    return 1.0
+
+
+@numba.njit(cache=True, nogil=True)
 def _motions(a, b, resolution, model, work, use_bounds, out) -> None:
     for row in range(a.shape[0]):
         out[row] = motion_check(a[row], b[row], resolution, model, work, use_bounds, True)
