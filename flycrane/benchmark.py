@@ -154,6 +154,25 @@ def format_table(rows: Sequence[dict]) -> str:
     return "\n".join(lines)
 
 
+def format_margins(margins: dict[tuple[str, str], list]) -> str:
+    """Fig. 6's least margins per (scene, planner) over its solved runs
+    (:func:`flycrane.profiles.least_margins`): median and worst run, in N."""
+    header = f"{'scene':<14} {'planner':<16} " + " ".join(
+        f"{name:>22}" for name in ("slack t_lo-f_lo", "headroom f_hi-t_hi", "thrust h-m")
+    )
+    lines = [header, "-" * len(header)]
+    for (scene, planner), runs in margins.items():
+        cells = []
+        for field in ("slack", "headroom", "thrust"):
+            values = [getattr(m, field) for m in runs]
+            cells.append(
+                f"{np.median(values):>10.2f} [{np.min(values):>9.2f}]" if values else f"{'-':>22}"
+            )
+        lines.append(f"{scene:<14} {planner:<16} " + " ".join(cells))
+    lines.append("least margin along each path [N]: median over the solved runs [worst run]")
+    return "\n".join(lines)
+
+
 def write_results(records: Sequence[RunRecord], rows: Sequence[dict], out: Path) -> None:
     """runs.csv (one line per run), summary.json (table rows and runs with paths)."""
     out.mkdir(parents=True, exist_ok=True)

@@ -89,11 +89,17 @@ def _cmd_system(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from flycrane.benchmark import format_table, run_benchmark, summarize, write_results
+    from flycrane.benchmark import (
+        format_margins,
+        format_table,
+        run_benchmark,
+        summarize,
+        write_results,
+    )
     from flycrane.execution import executor_for
     from flycrane.planning.planners import PlannerOptions
     from flycrane.planning.problem import PlanningProblem
-    from flycrane.profiles import path_profile, plot_profile_bands
+    from flycrane.profiles import least_margins, path_profile, plot_profile_bands
     from flycrane.scene import load_scene
 
     for scene in args.scenes:
@@ -116,6 +122,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     records.sort(key=lambda r: (args.scenes.index(r.scene), args.planners.index(r.planner), r.seed))
     rows = summarize(records)
     write_results(records, rows, out)
+    margins = {}
     for scene in args.scenes:
         problem = PlanningProblem.named(scene)
         groups = {
@@ -126,6 +133,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             ]
             for planner in args.planners
         }
+        for planner, profiles in groups.items():
+            margins[scene, planner] = [least_margins(p, problem.system) for p in profiles]
         plot_profile_bands(
             groups,
             problem.system,
@@ -133,6 +142,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             title=f"{scene}: tension and thrust ranges along the paths",
         )
     print(format_table(rows))
+    print(format_margins(margins))
     print(f"results in {out}/ (runs.csv, summary.json, fig6_<scene>.png)")
     return 0
 
@@ -174,7 +184,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         "--planners",
         nargs="+",
         default=["trrt", "rrt", "ompl-trrt", "ompl-rrt"],
-        choices=["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt"],
+        # planners.Algorithm's values, written out: importing the planners here would load
+        # the planning stack for every command
+        choices=["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt", "ompl-rrtconnect"],
     )
     bench.add_argument("--runs", type=int, default=100, help="seeds per scene and planner")
     bench.add_argument("--budget", type=float, default=60.0, help="seconds per run")

@@ -65,6 +65,26 @@ def path_profile(
     )
 
 
+@dataclass(frozen=True)
+class LeastMargins:
+    """The smallest margins of Fig. 6 along one path [N]: how close the worst cable came to
+    slack (t_lo - f_lo) and to its limit (f_hi - t_hi), the worst drone to its thrust limit
+    (h - m), each at the path's worst configuration."""
+
+    slack: float
+    headroom: float
+    thrust: float
+
+
+def least_margins(profile: PathProfile, system: CableSystem) -> LeastMargins:
+    """The least margins of a path's profile (every cable, drone and sample)."""
+    return LeastMargins(
+        slack=float((profile.tension_low - system.tension_min).min()),
+        headroom=float((system.tension_max - profile.tension_high).min()),
+        thrust=float((system.max_thrusts - profile.thrust_bound).min()),
+    )
+
+
 def _figure():
     """A two-panel figure (tensions, thrusts). A bare Figure draws with Agg and is freed
     with its last reference: no pyplot, whose import and figure manager cost a third of a

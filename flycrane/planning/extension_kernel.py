@@ -1,4 +1,4 @@
-"""Compiled pieces of a tree extension: embedding, nearest node, alpha repair, extend.
+"""Compiled pieces of a tree extension: embedding, alpha repair, extend, partial advance.
 
 One extension (:func:`extend`) is one compiled call: step from the near node towards a
 target along the local path, repair the formation (the alphas) at the new pose, check the
@@ -21,11 +21,16 @@ import numba
 import numpy as np
 
 from flycrane.collision_kernel import drone_free, pose_free
-from flycrane.planning.interpolation import interpolate_into
-from flycrane.planning.validity_kernel import motion_check, motion_last_valid, state_check
+from flycrane.planning.interpolation import geodesic_length, interpolate_into
+from flycrane.planning.neighbours import EMBEDDING
+from flycrane.planning.validity_kernel import (
+    in_bounds,
+    motion_check,
+    motion_last_valid,
+    state_check,
+)
+from flycrane.statics_kernel import statics_row
 
-#: Width of the embedding (position 3, scaled rotation matrix 9, alpha chords 6).
-EMBEDDING = 18
 #: Repair: finite-difference step and largest step of each descent step [rad].
 ALPHA_PROBE = 0.01
 ALPHA_STEP = 0.15
@@ -59,31 +64,27 @@ def embed_into(q, weights, out) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
-def nearest(embeddings, count, point) -> tuple[int, float]:
-    """Index of the row of embeddings[:count] nearest to point (18,), and the distance."""
-    best, index = math.inf, -1
-    for row in range(count):
-        total = 0.0
-        for a in range(EMBEDDING):
-            d = embeddings[row, a] - point[a]
-            total += d * d
-            if total >= best:
-                break
-        if total < best:
-            best, index = total, row
-    return index, math.sqrt(best)
-
-
-@numba.njit(cache=True, nogil=True)
 def _log_cost(q, model, work) -> float:
     cost, valid = state_check(q, model, work, True)
     return math.log(cost) if valid else math.inf
 
 
 @numba.njit(cache=True, nogil=True)
+def _statics_log_cost(q, model, work) -> float:
+    """log c without the collision check: the probes of a descent only need the slope."""
+    bounds, smodel = model[0], model[1]
+    if not in_bounds(q, bounds):
+        return math.inf
+    cost = statics_row(q, smodel, work[1], work[2], work[3], work[0])
+    return math.log(cost) if cost < math.inf else math.inf
+
+
+@numba.njit(cache=True, nogil=True)
 def repair_alphas(q, model, work, gradient) -> float:
     """Descend log c over q's alphas in place (module docstring); returns log c at the end
-    (+inf if q is invalid and no step found a valid configuration)."""
+    (+inf if q is invalid and no step found a valid configuration). The slope is probed
+    on the statics alone (a collision check costs 2-3 times the statics); every step taken
+    is checked whole, so a step into an obstacle is refused and shortened."""
     bounds = model[0]
     low, high = bounds[7], bounds[8]
     value = _log_cost(q, model, work)
@@ -95,9 +96,9 @@ def repair_alphas(q, model, work, gradient) -> float:
             saved = q[6 + k]
             probe = ALPHA_PROBE if saved + ALPHA_PROBE <= high else -ALPHA_PROBE
             q[6 + k] = saved + probe
-            shifted = _log_cost(q, model, work)
+            shifted = _statics_log_cost(q, model, work)
             q[6 + k] = saved
-            # A probe into an obstacle or infeasibility: push away from it.
+            # A probe into infeasibility: push away from it.
             slope = (shifted - value) / probe if shifted < math.inf else 1e3 * np.sign(probe)
             gradient[k] = slope
             norm += slope * slope
@@ -126,28 +127,26 @@ def repair_alphas(q, model, work, gradient) -> float:
 def _choose_alphas(near, target, out, model, work, scratch) -> bool:
     """Start the repair from the least-cost valid of: the near node's alphas (the warm
     start), the interpolated ones (out's), the target's; if none is valid,
-    :func:`choose_formation` near the near node's. False if nothing is valid."""
-    best = math.inf
+    :func:`choose_formation` near the near node's. False if nothing is valid. The
+    candidates are ranked by their statics and checked for collisions in that order, so
+    usually one collision check decides."""
+    candidates = scratch[6:15].reshape((3, 3))  # rows: near's, out's, target's alphas
+    costs = np.empty(3)
     for k in range(3):
-        scratch[6 + k] = out[6 + k]
-    for candidate in range(3):
+        candidates[0, k], candidates[1, k] = near[6 + k], out[6 + k]
+        candidates[2, k] = target[6 + k]
+    for c in range(3):
         for k in range(3):
-            if candidate == 0:
-                out[6 + k] = near[6 + k]
-            elif candidate == 1:
-                out[6 + k] = scratch[6 + k]
-            else:
-                out[6 + k] = target[6 + k]
-        value = _log_cost(out, model, work)
-        if value < best:
-            best = value
-            for k in range(3):
-                scratch[9 + k] = out[6 + k]
-    if best == math.inf:
-        return choose_formation(out, near[6:9], model, work, scratch)
-    for k in range(3):
-        out[6 + k] = scratch[9 + k]
-    return True
+            out[6 + k] = candidates[c, k]
+        costs[c] = _statics_log_cost(out, model, work)
+    for c in np.argsort(costs):
+        if not costs[c] < math.inf:
+            break
+        for k in range(3):
+            out[6 + k] = candidates[c, k]
+        if state_check(out, model, work, True)[1]:
+            return True
+    return choose_formation(out, near[6:9], model, work, scratch)
 
 
 #: Formation choice: alphas per drone scanned, and nearest free ones combined per drone.
@@ -204,12 +203,15 @@ NO_REPAIR, REPAIR, REPAIR_UNLESS_REACHED = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def extend(near, target, step, repair, resolution, model, work, out, partial=0.0) -> tuple[int, float]:
+def extend(near, target, step, repair, partial, resolution, model, work, out) -> tuple[int, float]:
     """One extension from ``near`` towards ``target`` into ``out`` (9,): (outcome, cost).
 
     The new configuration lies ``step`` (chordal) along the local path, or is the target if
     closer; its alphas are repaired (warm start: the near node's alphas) as ``repair``
-    says. REACHED means ``out`` equals the target.
+    says. REACHED means ``out`` equals the target. Where the new configuration is invalid
+    and ``partial`` > 0, ``out`` is the last valid configuration towards it
+    (:func:`advance_partial`); where it is valid but the motion to it is not, the outcome
+    is BLOCKED and the caller chooses (:func:`reshape_first`, :func:`advance_partial`).
     """
     weights = model[4]
     scratch = work[-1]
@@ -229,22 +231,38 @@ def extend(near, target, step, repair, resolution, model, work, out, partial=0.0
         if not repair_alphas(out, model, work, scratch[2]) < math.inf:
             return FAILED, math.inf
     cost, valid = state_check(out, model, work, True)
-    if valid and motion_check(near, out, resolution, model, work, True, False):
-        return (REACHED if reached else ADVANCED), cost
+    if valid:
+        if motion_check(near, out, resolution, model, work, True, False):
+            return (REACHED if reached else ADVANCED), cost
+        return BLOCKED, cost
     if partial > 0.0:
-        t = motion_last_valid(near, out, resolution, model, work, True)
-        if t * min(distance, step) >= partial:
-            end = scratch[2, :9]
-            for k in range(9):
-                end[k] = out[k]
-            interpolate_into(near, end, t, out)
-            cost, valid = state_check(out, model, work, True)
-            if valid:
-                return ADVANCED, cost
-        return FAILED, math.inf
-    if not valid:
-        return FAILED, math.inf
-    return BLOCKED, cost
+        cost = advance_partial(near, out, partial, resolution, model, work)
+        if cost < math.inf:
+            return ADVANCED, cost
+    return FAILED, math.inf
+
+
+@numba.njit(cache=True, nogil=True)
+def advance_partial(near, out, least, resolution, model, work) -> float:
+    """Move ``out`` back along the local path near -> out to its last valid configuration
+    (at the motion's discretization); that configuration's cost if it lies at least
+    ``least`` (path length) from near and the motion to it is valid, else +inf and ``out``
+    means nothing. Where a passage is narrower than the step, the part of an extension
+    that fits is progress the full step would lose."""
+    weights = model[4]
+    length = geodesic_length(near, out, weights[0], weights[1])
+    t = motion_last_valid(near, out, resolution, model, work, True)
+    if t * length < least:
+        return math.inf
+    end = work[-1][2, :9]
+    for k in range(9):
+        end[k] = out[k]
+    interpolate_into(near, end, t, out)
+    cost, valid = state_check(out, model, work, True)
+    # The shorter motion is discretized at other points: check it as every motion is.
+    if not (valid and motion_check(near, out, resolution, model, work, True, False)):
+        return math.inf
+    return cost
 
 
 @numba.njit(cache=True, nogil=True)

@@ -1,4 +1,4 @@
-"""OMPL's RRT and TRRT as peer planners on our validity checker and cost.
+"""OMPL's RRT, RRTConnect and TRRT as peer planners on our validity checker and cost.
 
 They answer to the same :class:`~flycrane.planning.trrt.Validity` and return the same
 :class:`~flycrane.planning.result.PlannerResult`, so the user can select them and the
@@ -55,7 +55,7 @@ POLL_INTERVAL = 0.05
 class _Job:
     space: ConfigurationSpace
     validity: Validity
-    algorithm: Literal["rrt", "trrt"]
+    algorithm: Literal["rrt", "rrtconnect", "trrt"]
     config: TRRTConfig
     start: NDArray[np.float64]
     goal: NDArray[np.float64]
@@ -64,13 +64,13 @@ class _Job:
 
 
 class OmplPlanner:
-    """OMPL's ``og.RRT`` or ``og.TRRT`` behind our planner interface."""
+    """OMPL's ``og.RRT``, ``og.RRTConnect`` or ``og.TRRT`` behind our planner interface."""
 
     def __init__(
         self,
         space: ConfigurationSpace,
         validity: Validity,
-        algorithm: Literal["rrt", "trrt"],
+        algorithm: Literal["rrt", "rrtconnect", "trrt"],
         config: TRRTConfig | None = None,
     ) -> None:
         self.space, self.validity, self.algorithm = space, validity, algorithm
@@ -236,10 +236,13 @@ def _solve(job: _Job) -> tuple[PlannerStatus, NDArray[np.float64], int, int]:
         planner.setInitTemperature(job.config.init_temperature or 1e-6 * c_start)
         planner.setTempChangeFactor(job.config.temperature_rate)
         planner.setFrontierNodeRatio(job.config.refinement_ratio)
+    elif job.algorithm == "rrtconnect":
+        planner = og.RRTConnect(info)  # grows a tree from the goal state itself: no bias
     else:
         planner = og.RRT(info)
     planner.setRange(step)
-    planner.setGoalBias(job.config.goal_bias)
+    if job.algorithm != "rrtconnect":
+        planner.setGoalBias(job.config.goal_bias)
     planner.setProblemDefinition(problem)
     planner.setup()
     solved = planner.solve(ob.timedPlannerTerminationCondition(job.time_budget))

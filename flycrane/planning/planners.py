@@ -27,7 +27,7 @@ from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.trrt import TRRT, TRRTConfig
 from flycrane.quantities import MAX_LENGTH, Seed
 
-Algorithm = Literal["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt"]
+Algorithm = Literal["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt", "ompl-rrtconnect"]
 #: Planners that minimize the cost (their shortcuts must not add mechanical work).
 COST_AWARE: frozenset[str] = frozenset({"trrt", "bitrrt", "ompl-trrt"})
 #: Options of the unidirectional T-RRT that the bidirectional one has no use for.
@@ -35,12 +35,17 @@ TRRT_ONLY = ("goal_bias", "goal_connection", "init_temperature", "refinement_rat
 
 
 class PlannerOptions(BaseModel):
-    """Which planner, with which parameters (defaults: the paper's T-RRT)."""
+    """Which planner, with which parameters (default: ``bitrrt``, which beats T-RRT on
+    every benchmark, BENCHMARKS.md "Planner v2"; ``trrt`` is the paper's, for Table I)."""
 
     # Finite numbers only; seeds and counts are integers, not booleans or strings.
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
-    algorithm: Algorithm = "trrt"
+    algorithm: Algorithm = Field(
+        "bitrrt",
+        description="bitrrt (default; trrt in scenes with triangle meshes, which bitrrt "
+        "does not check), trrt (the paper's T-RRT), rrt, or OMPL's peers",
+    )
     seed: Seed = Field(0, description="random seed: same seed, same path")
     time_budget: float = Field(60.0, gt=0, le=86_400, description="planning time limit [s]")
     step: float | None = Field(
@@ -98,12 +103,17 @@ class PlannerOptions(BaseModel):
 def make_planner(space: ConfigurationSpace, validity: CompiledChecker, options: PlannerOptions):
     """The planner object for ``options.algorithm`` (each has ``solve`` and ``name``)."""
     if options.algorithm == "bitrrt":
+        if validity.has_meshes and "algorithm" not in options.model_fields_set:
+            # The default planner checks primitive shapes only; T-RRT checks meshes (fcl).
+            return TRRT(space, validity, options.trrt_config(), name="trrt")
         return BiTRRT(space, validity, options.bitrrt_config())
     config = options.trrt_config()
     if options.algorithm == "ompl-rrt":
         return OmplPlanner(space, validity, "rrt", config)
     if options.algorithm == "ompl-trrt":
         return OmplPlanner(space, validity, "trrt", config)
+    if options.algorithm == "ompl-rrtconnect":
+        return OmplPlanner(space, validity, "rrtconnect", config)
     return TRRT(space, validity, config, name=options.algorithm)
 
 

@@ -8,6 +8,7 @@ import pytest
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.profiles import (
     configurations_at_fractions,
+    least_margins,
     path_profile,
     plot_path_profile,
     plot_profile_bands,
@@ -52,3 +53,13 @@ def test_a_title_is_text_not_mathtext(system, tmp_path):
     profile = path_profile(system, SPACE, path, steps=2)
     png = plot_path_profile(profile, system, tmp_path / "p.png", title=r"bridge $\frac{1}{$ 50%")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_least_margins_at_the_benchmark_hover(system):
+    """design.md section 5: at q = (0, 0, 5, 0, 0, 0, 1, 1, 1) f0 = 3.11 N, v = 1.18 N and
+    m = 17.14 N, against f in [0.5, 30] N and h = 25 N."""
+    hover = np.array([[0, 0, 5, 0, 0, 0, 1, 1, 1], [0, 0, 5, 0, 0, 0, 1, 1, 1]], dtype=float)
+    margins = least_margins(path_profile(system, SPACE, hover, steps=4), system)
+    assert margins.slack == pytest.approx(3.11 - 1.18 - 0.5, abs=0.01)
+    assert margins.headroom == pytest.approx(30.0 - (3.11 + 1.18), abs=0.01)
+    assert margins.thrust == pytest.approx(25.0 - 17.14, abs=0.01)

@@ -151,6 +151,25 @@ def test_an_unknown_scene_is_an_input_error_naming_the_scene_field():
     assert "atlantis" in str(caught.value) and "rescue" in str(caught.value)
 
 
+def test_bitrrt_asked_for_in_a_scene_with_meshes_is_refused_naming_the_field():
+    """bitrrt checks primitive shapes only: asked for by name it is refused at once; left
+    to the default, a mesh scene is planned by T-RRT (flycrane/planning/planners.py)."""
+    scene = load_scene("rescue")[0].model_dump(mode="json")
+    scene["obstacles"].append(
+        {"kind": "mesh", "name": "sign", "vertices": [[9, 4, 0], [10, 4, 0], [9, 5, 1]],
+         "faces": [[0, 1, 2]]}
+    )  # fmt: skip
+    exact = MissionOptions(position_error="exact")  # meshes cannot be grown by a clearance
+    with pytest.raises(InputError) as caught:
+        resolve_task(
+            TaskSpec(scene=scene, planner=PlannerOptions(algorithm="bitrrt"), mission=exact)
+        )
+    assert [p.field for p in caught.value.problems] == ["planner.algorithm"]
+    assert "trrt" in str(caught.value)
+    resolved = resolve_task(TaskSpec(scene=scene, mission=exact))
+    assert resolved.problem.validity.has_meshes
+
+
 def test_plan_command_prints_where_the_missions_are(tmp_path, capsys):
     assert main(["plan", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out

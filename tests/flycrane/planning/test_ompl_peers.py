@@ -1,4 +1,4 @@
-"""OMPL's RRT and TRRT as peers on our checker: they run in a child process, return our
+"""OMPL's RRT, RRTConnect and TRRT as peers on our checker: they run in a child process, return our
 result type, and their paths pass our own motion checks."""
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ def free_space(system):
     return space, ToyValidity(system, space)
 
 
-@pytest.mark.parametrize("algorithm", ["rrt", "trrt"])
+@pytest.mark.parametrize("algorithm", ["rrt", "rrtconnect", "trrt"])
 def test_ompl_peer_solves_and_its_path_is_valid_for_us(free_space, algorithm):
     space, validity = free_space
     result = OmplPlanner(space, validity, algorithm).solve(
@@ -42,7 +42,7 @@ def test_ompl_peer_solves_and_its_path_is_valid_for_us(free_space, algorithm):
     assert "ompl" not in sys.modules  # the parent never loads libompl (exit-time double free)
 
 
-@pytest.mark.parametrize("algorithm", ["rrt", "trrt"])
+@pytest.mark.parametrize("algorithm", ["rrt", "rrtconnect", "trrt"])
 def test_ompl_peer_does_not_stop_where_the_goal_is_out_of_reach(free_space, system, algorithm):
     """Nodes just before a wall lie within reach of the goal behind it, but the straight
     motion is blocked: the run must go on over the wall, not end there and fail."""
