@@ -64,6 +64,7 @@ from numpy.typing import NDArray
 from flycrane.errors import FieldProblem, InputError
 from flycrane.planning.bitrrt_kernel import (
     ATTEMPTS,
+    FRONTIER,
     FULL,
     INVALID,
     MET,
@@ -242,6 +243,7 @@ class BiTRRT:
         start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
         cfg = self.config
         counters = np.zeros(N_COUNTERS, dtype=np.int64)
+        counters[FRONTIER] = 1  # as OMPL's count: the ratio's denominator is never 0
         forest = Forest(INITIAL_CAPACITY, GRID_CELL)
 
         def finish(status: PlannerStatus, path=None, reason="") -> PlannerResult:

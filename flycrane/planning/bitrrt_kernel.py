@@ -46,9 +46,13 @@ from flycrane.planning.neighbours import EMBEDDING, TABLE_SIZE, grid_insert, gri
 #: run()'s outcomes: the batch of attempts is done; the trees met (``meet`` holds the two
 #: node indices); the arrays are nearly full (enlarge them and call again).
 RUNNING, MET, FULL = 0, 1, 2
-#: Nodes one attempt can add at most (an extension and a connection of up to
-#: connection_range / step steps, each with a reshape-first node), with room to spare.
-MARGIN = 256
+#: Steps of one connection at most: each moves a step, or at least ``partial``, towards
+#: its target, but the alpha repair can move it away again (the alphas go down the cost,
+#: not towards the target's), so the loop is bounded rather than trusted to converge.
+CONNECT_STEPS = 100
+#: Nodes one attempt can add at most (an extension and a connection, each step with a
+#: reshape-first node), with room to spare: the arrays are never written past their end.
+MARGIN = 2 * (CONNECT_STEPS + 1) + 16
 
 #: Indices of the counters array.
 (
@@ -311,7 +315,7 @@ def connect(forest, t, target, params, model, work, counters, out) -> int:
     near, distance = _nearest(forest, t, point)
     if distance > params[P_CONNECTION_RANGE]:
         return -1
-    while True:
+    for _ in range(CONNECT_STEPS):
         outcome, index = grow(
             forest, t, near, target, REPAIR_UNLESS_REACHED, params, model, work, counters, out
         )
@@ -320,6 +324,7 @@ def connect(forest, t, target, params, model, work, counters, out) -> int:
         if outcome == REACHED:
             return index
         near = index
+    return -1
 
 
 @numba.njit(cache=True, nogil=True)
