@@ -33,6 +33,8 @@ from numpy.typing import NDArray
 from missions.autopilots.ardupilot import MIN_GROUND_SPEED, ArduCopterSettings, limits_at_setup
 from missions.autopilots.chain import ChainFlight, fly_chain
 from missions.autopilots.spline import (
+    MAX_LEG_TIME,
+    WPNAV_DT,
     HermiteLeg,
     LegFlight,
     SpeedLimits,
@@ -109,15 +111,23 @@ class _LegProblem:
     def _vertical(self) -> str:
         return "up" if self.chord[2] > 0 else "down"
 
-    def fly(self, axis: str, value: float) -> LegFlight:
+    def fly(self, axis: str, value: float, against: float | None = None) -> LegFlight:
+        """The leg flown with the binding ``axis`` at ``value``; with ``against`` [s], only
+        until it is sure to last longer than that (its duration is then some value above
+        ``against``): shorter or longer is all the search asks, and the slow limits it tries
+        fly for minutes (1 mm/s climbs). Two steps of margin keep a stopped flight's
+        duration above ``against`` in floating point."""
         legs, k = self.drone.legs, self.k
         limit = _limit(self.settings.initial_speeds, axis, value)
         accel = self.settings.accel_limits
         setup = limits_at_setup(self.drone.limits, limit)
         exit_max = entry_speed_limit(legs[k + 1], setup, accel) if k + 1 < len(legs) else 0.0
+        max_time = MAX_LEG_TIME
+        if against is not None:
+            max_time = min(max_time, max(against, 0.0) + 2 * WPNAV_DT)
         return fly_leg(
             legs[k], limit, accel, self.drone.entry, exit_max, self.settings.tracking,
-            self.drone.state,
+            self.drone.state, max_time=max_time,
         )  # fmt: skip
 
     def fastest(self, max_speed: float) -> float:
@@ -146,19 +156,18 @@ class _LegProblem:
         """The binding axis and value that fly the leg in ``target`` [s], and "", "early"
         or "late" where no value does."""
         axis, low = self.axis, (MIN_GROUND_SPEED if self.axis == "horizontal" else MIN_VERTICAL)
-        if axis == "horizontal" and self.fly(axis, low).duration < target and self.climbs:
+        duration = lambda axis, value: self.fly(axis, value, against=target).duration  # noqa: E731
+        if axis == "horizontal" and duration(axis, low) < target and self.climbs:
             axis = self._vertical() if self.vertical_capable else f"{self._vertical()}/floor"
             low = MIN_VERTICAL
         high = MAX_LIMIT
-        if self.fly(axis, low).duration < target:
+        if duration(axis, low) < target:
             return axis, low, "early"
-        if self.fly(axis, high).duration > target:
+        if duration(axis, high) > target:
             return axis, high, "late"
         for _ in range(BISECTION_STEPS):
             middle = float(np.sqrt(low * high))  # geometric: limits span decades
-            low, high = (
-                (middle, high) if self.fly(axis, middle).duration > target else (low, middle)
-            )
+            low, high = (middle, high) if duration(axis, middle) > target else (low, middle)
         return axis, high, ""
 
 

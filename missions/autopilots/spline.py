@@ -49,6 +49,8 @@ TANGENTIAL_ACCEL_SCALER = 0.5
 LATERAL_ACCEL_SCALER = 0.5
 #: AC_WPNav's loop period [s] (the vehicle's 400 Hz main loop).
 WPNAV_DT = 0.0025
+#: Longest leg :func:`fly_leg` flies by default [s]; a longer one stops unfinished.
+MAX_LEG_TIME = 600.0
 
 
 def kinematic_limit(
@@ -377,7 +379,7 @@ def fly_leg(
     tracking: Tracking | None = None,
     state: NDArray[np.float64] | None = None,
     dt: float = WPNAV_DT,
-    max_time: float = 600.0,
+    max_time: float = MAX_LEG_TIME,
 ) -> LegFlight:
     """The target's motion along ``leg`` from ``entry_speed`` until u reaches 1, braking
     towards ``exit_speed_max`` (the next leg's entry limit, 0 for a stop), and the vehicle
