@@ -37,7 +37,6 @@ from missions.autopilots.spline import (
     WPNAV_DT,
     AccelLimits,
     HermiteLeg,
-    LegFlight,
     SpeedLimits,
     Tracking,
     entry_speed_limit,
@@ -72,15 +71,24 @@ class FleetSpeeds:
     late: tuple[tuple[int, int], ...]  #: (drone, leg): slower than planned
 
 
+@dataclass(frozen=True)
+class LegOutcome:
+    """What the solver reads of a leg flight (:class:`~missions.autopilots.spline.LegFlight`)."""
+
+    duration: float  #: [s]
+    exit_speed: float  #: the target's speed at the leg's end [m/s]
+    state: NDArray[np.float64]  #: the vehicle at the leg's end (shared: never modified)
+
+
 class LegFlights:
-    """Leg flights by their exact inputs, for the timings of one flight plan. The plan times
-    one set of waypoints after another (a leg split, a waypoint dropped), and every leg
-    before the change is set up exactly as before, so the search's trial flights there
-    repeat (Rescue: 1.0 M of the second timing's 1.3 M simulated steps). Flights are shared:
-    callers must not modify them."""
+    """Outcomes of leg flights by their exact inputs, for the timings of one flight plan.
+    The plan times one set of waypoints after another (a leg split, a waypoint dropped), and
+    every leg before the change is set up exactly as before, so the search's trial flights
+    there repeat (Rescue: 1.0 M of the second timing's 1.3 M simulated steps). Only the
+    outcomes are kept: the trajectories raised the Rescue's peak memory by 60 MB."""
 
     def __init__(self) -> None:
-        self._known: dict[tuple, LegFlight] = {}
+        self._known: dict[tuple, LegOutcome] = {}
 
     def fly(
         self,
@@ -92,20 +100,21 @@ class LegFlights:
         tracking: Tracking,
         state: NDArray[np.float64],
         max_time: float,
-    ) -> LegFlight:
+    ) -> LegOutcome:
         """:func:`~missions.autopilots.spline.fly_leg`, flown once per distinct input."""
         key = (
             leg.coefficients.tobytes(), speed, accel, entry_speed, exit_speed_max, tracking,
             state.tobytes(), max_time,
         )  # fmt: skip
-        flight = self._known.get(key)
-        if flight is None:
+        outcome = self._known.get(key)
+        if outcome is None:
             flight = fly_leg(
                 leg, speed, accel, entry_speed, exit_speed_max, tracking, state,
                 max_time=max_time,
             )  # fmt: skip
-            self._known[key] = flight
-        return flight
+            outcome = LegOutcome(flight.duration, flight.exit_speed, flight.state)
+            self._known[key] = outcome
+        return outcome
 
 
 @dataclass
@@ -151,7 +160,7 @@ class _LegProblem:
     def _vertical(self) -> str:
         return "up" if self.chord[2] > 0 else "down"
 
-    def fly(self, axis: str, value: float, against: float | None = None) -> LegFlight:
+    def fly(self, axis: str, value: float, against: float | None = None) -> LegOutcome:
         """The leg flown with the binding ``axis`` at ``value``; with ``against`` [s], only
         until it is sure to last longer than that (its duration is then some value above
         ``against``): shorter or longer is all the search asks, and the slow limits it tries

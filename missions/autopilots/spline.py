@@ -298,8 +298,7 @@ def _fly(c, vxy, vup, vdn, axy, az, entry, exit_max, dt, max_steps, state, lag):
         u_out[n], v_out[n] = u, v
         for i in range(3):
             x_out[n, i] = state[i]
-    # Copies: the buffers are sized for the longest leg, and flights are kept (LegFlights).
-    return u_out[: n + 1].copy(), v_out[: n + 1].copy(), x_out[: n + 1].copy()
+    return u_out[: n + 1], v_out[: n + 1], x_out[: n + 1]
 
 
 def entry_speed_limit(leg: HermiteLeg, speed: SpeedLimits, accel: AccelLimits) -> float:
