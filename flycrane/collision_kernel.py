@@ -325,13 +325,14 @@ def collision_free_row(q, kin, scene, work) -> bool:
     ``kin``: :func:`kinematic_arrays`; ``scene``: :attr:`CompiledScene.arrays`; ``work``:
     :meth:`CompiledScene.workspace`.
     """
-    return (
-        pose_free(q, kin, scene, work)
-        and drone_free(q, 0, kin, scene, work)
-        and drone_free(q, 1, kin, scene, work)
-        and drone_free(q, 2, kin, scene, work)
-        and formation_free(scene, work)
-    )
+    if not pose_free(q, kin, scene, work):
+        return False
+    # A loop, not drone_free(q, 0, ...) ... (q, 2, ...): constant arguments are literals to
+    # numba, which compiled drone_free three times (2 s of CPU in a fresh install's first run).
+    for k in range(3):
+        if not drone_free(q, k, kin, scene, work):
+            return False
+    return formation_free(scene, work)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -36,7 +36,7 @@ from flycrane.cable_system import CableSystem
 from flycrane.direct_kinematics import configuration_from_drone_positions
 from flycrane.kinematics import drone_positions_from_configuration, matrix_from_tilt_torsion
 from missions.autopilots.ardupilot import ArduCopterSettings
-from missions.autopilots.speed_solver import FleetSpeeds, solve_fleet
+from missions.autopilots.speed_solver import FleetSpeeds, LegFlights, solve_fleet
 from missions.autopilots.spline import SpeedLimits
 from missions.geodesy import (
     DEGREE_UNIT,
@@ -189,15 +189,18 @@ def _attempt(
     landing: Validity,
     options: MissionOptions,
     settings: ArduCopterSettings,
+    flights: LegFlights,
 ) -> _Attempt:
     """Timing for ``waypoints``, the modelled motion, and its check every
-    ``check_resolution`` (module docstring); ``landing`` judges the set-down leg."""
+    ``check_resolution`` (module docstring); ``landing`` judges the set-down leg;
+    ``flights`` are those of the plan's earlier attempts."""
     fleet = solve_fleet(
         waypoints.drones,
         waypoints.planned,
         settings,
         options.max_drone_speed,
         _angular_floor(waypoints.q, options),
+        flights,
     )
     motion = DroneMotion.from_chains(fleet.flights, fleet.times)
     step = options.check_resolution
@@ -233,9 +236,11 @@ def plan_flight(
     indices = straight.indices
     reason = straight.reason
 
+    flights = LegFlights()  # attempts differ in a waypoint: the legs before it repeat
+
     def attempt(indices: NDArray[np.int64]) -> _Attempt:
         waypoints = _waypoints(system, track, indices, options, set_down)
-        return _attempt(system, track, waypoints, validity, landing, options, settings)
+        return _attempt(system, track, waypoints, validity, landing, options, settings, flights)
 
     for _ in range(MAX_SPLITS + 1):
         trial = attempt(indices)

@@ -70,9 +70,15 @@ class LogInputs:
     records: Sequence[tuple[float, str, Mapping[str, Any]]] = ()
 
 
-def _set_pose(pose, position, rotation) -> None:
+def _set_pose(pose, position, rotation=None) -> None:
+    """Position and orientation; no ``rotation``: the identity, set explicitly (an unset
+    proto3 pose reads as the quaternion (0, 0, 0, 0), which is no rotation at all for a
+    reader that applies it), without a scipy call for each of the log's many world-frame
+    bodies."""
     pose.position.x, pose.position.y, pose.position.z = map(float, position)
-    x, y, z, w = Rotation.from_matrix(rotation).as_quat()
+    x, y, z, w = (
+        (0.0, 0.0, 0.0, 1.0) if rotation is None else Rotation.from_matrix(rotation).as_quat()
+    )
     pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = x, y, z, w
 
 
@@ -106,19 +112,22 @@ def _add_shape(entity, shape, position, rotation, rgba) -> None:
     _set_color(primitive.color, rgba)
 
 
-def _crane_update(inputs: LogInputs, q: np.ndarray, stamp: int) -> SceneUpdate:
-    system = inputs.system
+def _crane_update(
+    inputs: LogInputs,
+    q: np.ndarray,
+    rotation: np.ndarray,
+    b: np.ndarray,
+    a: np.ndarray,
+    stamp: int,
+) -> SceneUpdate:
+    """The FlyCrane at q: its rotation (3, 3), platform points b (6, 3), drones a (3, 3)."""
     update = SceneUpdate()
     entity = update.entities.add()
     entity.id, entity.frame_id = "flycrane", "world"
     entity.timestamp.FromNanoseconds(stamp)
-    rotation = matrix_from_tilt_torsion(q[3:6])
-    b = platform_points_from_configuration(system, q)[0]
-    a = drone_positions_from_configuration(system, q)[0]
-    # Points in world coordinates, so an identity pose: an unset proto3 pose reads as the
-    # quaternion (0, 0, 0, 0), which is no rotation at all for a reader that applies it.
+    # Points in world coordinates, so an identity pose.
     platform = entity.triangles.add()
-    _set_pose(platform.pose, np.zeros(3), np.eye(3))
+    _set_pose(platform.pose, np.zeros(3))
     for point_xyz in b[[0, 2, 4]]:
         point = platform.points.add()
         point.x, point.y, point.z = map(float, point_xyz)
@@ -126,7 +135,7 @@ def _crane_update(inputs: LogInputs, q: np.ndarray, stamp: int) -> SceneUpdate:
     for shape in inputs.scene.payload.shapes:
         _add_shape(entity, shape, q[:3], rotation, ORANGE)
     cables = entity.lines.add()
-    _set_pose(cables.pose, np.zeros(3), np.eye(3))  # world points, as for the platform
+    _set_pose(cables.pose, np.zeros(3))  # world points, as for the platform
     cables.type = 2  # LINE_LIST
     cables.thickness = 0.02
     for i in range(6):
@@ -136,7 +145,7 @@ def _crane_update(inputs: LogInputs, q: np.ndarray, stamp: int) -> SceneUpdate:
     _set_color(cables.color, RED)
     for k in range(3):
         drone = entity.spheres.add()
-        _set_pose(drone.pose, a[k], np.eye(3))
+        _set_pose(drone.pose, a[k])
         drone.size.x = drone.size.y = drone.size.z = 2 * inputs.scene.collision.drone_radius
         _set_color(drone.color, BLUE)
     return update
@@ -164,14 +173,21 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
     stamp_of = lambda t: start + round(float(t) * 1e9)  # noqa: E731
     messages.append((start, "/scene", _static_update(inputs.scene, start).SerializeToString()))
     lat, lon, alt = geodetic_from_enu(track.drones[samples], inputs.options.origin)
+    # The crane's geometry for all samples at once (scipy and numpy once, not per sample).
+    shown = track.q[samples]
+    rotations = matrix_from_tilt_torsion(shown[:, 3:6])
+    quaternions = Rotation.from_matrix(rotations).as_quat()
+    points = platform_points_from_configuration(inputs.system, shown)
+    drones = drone_positions_from_configuration(inputs.system, shown)
     for n, k in enumerate(samples):
         stamp, q = stamp_of(track.time[k]), track.q[k]
-        messages.append((stamp, "/scene", _crane_update(inputs, q, stamp).SerializeToString()))
+        crane = _crane_update(inputs, q, rotations[n], points[n], drones[n], stamp)
+        messages.append((stamp, "/scene", crane.SerializeToString()))
         transform = FrameTransform(parent_frame_id="world", child_frame_id="platform")
         transform.timestamp.FromNanoseconds(stamp)
         translation = transform.translation
         translation.x, translation.y, translation.z = map(float, q[:3])
-        x, y, z, w = Rotation.from_matrix(matrix_from_tilt_torsion(q[3:6])).as_quat()
+        x, y, z, w = quaternions[n]
         transform.rotation.x, transform.rotation.y, transform.rotation.z, transform.rotation.w = (
             x,
             y,

@@ -11,6 +11,7 @@ acceleration bound turns into slow-downs, as a copter does at waypoints.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,27 +96,34 @@ def time_law(
         options.max_angular_rate / np.maximum(w, 1e-12),
     )
 
-    def largest(c: NDArray, g_now: NDArray, gap: float, length: float) -> float:
+    def largest(c: list[float], g_now: list[float], gap: float, length: float) -> float:
         """Largest V with g_now V - c <= a (gap + length / V) / 2 for every drone: the
         positive root of g V^2 - (c + a gap / 2) V - a length / 2 = 0."""
-        moving = g_now > 1e-12
-        b = c[moving] + a * gap / 2
-        roots = (b + np.sqrt(b**2 + 2 * g_now[moving] * a * length)) / (2 * g_now[moving])
-        return float(roots.min(initial=np.inf))
+        best = math.inf
+        for c_j, g_j in zip(c, g_now, strict=True):
+            if g_j > 1e-12:
+                b = c_j + a * gap / 2
+                best = min(best, (b + math.sqrt(b * b + 2 * g_j * a * length)) / (2 * g_j))
+        return best
 
-    n = len(speed)
+    # The sweeps visit one segment at a time: on Python floats, as numpy's per-call cost on
+    # three-element arrays was most of their time.
+    rows, lengths, v = g.tolist(), ds.tolist(), speed.tolist()
+    n = len(v)
+    rest = [0.0, 0.0, 0.0]
     for _ in range(max_sweeps):
-        before = speed.copy()
+        before = np.array(v)
         for k in range(n):  # accelerating into segment k (from rest before the first)
-            c = g[k - 1] * speed[k - 1] if k else np.zeros(3)
-            gap = ds[k - 1] / speed[k - 1] if k else 0.0
-            speed[k] = min(speed[k], largest(c, g[k], gap, ds[k]))
+            c = [g_j * v[k - 1] for g_j in rows[k - 1]] if k else rest
+            gap = lengths[k - 1] / v[k - 1] if k else 0.0
+            v[k] = min(v[k], largest(c, rows[k], gap, lengths[k]))
         for k in range(n - 1, -1, -1):  # decelerating out of segment k (to rest after the last)
-            c = g[k + 1] * speed[k + 1] if k < n - 1 else np.zeros(3)
-            gap = ds[k + 1] / speed[k + 1] if k < n - 1 else 0.0
-            speed[k] = min(speed[k], largest(c, g[k], gap, ds[k]))
-        if np.allclose(speed, before, rtol=1e-9, atol=0.0):
+            c = [g_j * v[k + 1] for g_j in rows[k + 1]] if k < n - 1 else rest
+            gap = lengths[k + 1] / v[k + 1] if k < n - 1 else 0.0
+            v[k] = min(v[k], largest(c, rows[k], gap, lengths[k]))
+        if np.allclose(v, before, rtol=1e-9, atol=0.0):
             break
+    speed = np.array(v)
     return np.concatenate([[0.0], np.cumsum(ds / speed)])
 
 

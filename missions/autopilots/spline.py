@@ -49,6 +49,8 @@ TANGENTIAL_ACCEL_SCALER = 0.5
 LATERAL_ACCEL_SCALER = 0.5
 #: AC_WPNav's loop period [s] (the vehicle's 400 Hz main loop).
 WPNAV_DT = 0.0025
+#: Longest leg :func:`fly_leg` flies by default [s]; a longer one stops unfinished.
+MAX_LEG_TIME = 600.0
 
 
 def kinematic_limit(
@@ -175,33 +177,36 @@ def _kinematic(dx, dy, dz, horizontal, up, down):
 @numba.njit(cache=True, nogil=True)
 def _limits_at(c, u, vxy, vup, vdn, axy, az):
     """SplineCurve::calc_dt_speed_max at u, without the braking term: the speed limit, the
-    tangential acceleration limit, and the norms of the curve's first three derivatives."""
-    vel = np.empty(3)
-    acc = np.empty(3)
-    jerk = np.empty(3)
-    for i in range(3):
-        vel[i] = c[1, i] + 2.0 * c[2, i] * u + 3.0 * c[3, i] * u * u
-        acc[i] = 2.0 * c[2, i] + 6.0 * c[3, i] * u
-        jerk[i] = 6.0 * c[3, i]
-    length = math.sqrt(vel[0] ** 2 + vel[1] ** 2 + vel[2] ** 2)
-    acc_norm = math.sqrt(acc[0] ** 2 + acc[1] ** 2 + acc[2] ** 2)
-    jerk_norm = math.sqrt(jerk[0] ** 2 + jerk[1] ** 2 + jerk[2] ** 2)
+    tangential acceleration limit, and the norms of the curve's first three derivatives.
+
+    Scalars only: it runs at every 2.5 ms step of every leg the speed solver tries, and
+    three small arrays per step cost more than the arithmetic."""
+    vx = c[1, 0] + 2.0 * c[2, 0] * u + 3.0 * c[3, 0] * u * u
+    vy = c[1, 1] + 2.0 * c[2, 1] * u + 3.0 * c[3, 1] * u * u
+    vz = c[1, 2] + 2.0 * c[2, 2] * u + 3.0 * c[3, 2] * u * u
+    acc_x = 2.0 * c[2, 0] + 6.0 * c[3, 0] * u
+    acc_y = 2.0 * c[2, 1] + 6.0 * c[3, 1] * u
+    acc_z = 2.0 * c[2, 2] + 6.0 * c[3, 2] * u
+    jerk_x, jerk_y, jerk_z = 6.0 * c[3, 0], 6.0 * c[3, 1], 6.0 * c[3, 2]
+    length = math.sqrt(vx * vx + vy * vy + vz * vz)
+    acc_norm = math.sqrt(acc_x * acc_x + acc_y * acc_y + acc_z * acc_z)
+    jerk_norm = math.sqrt(jerk_x * jerk_x + jerk_y * jerk_y + jerk_z * jerk_z)
     if length > 0.0:
-        unit = vel / length
+        ux, uy, uz = vx / length, vy / length, vz / length
     elif acc_norm > 0.0:
-        unit = acc / acc_norm
+        ux, uy, uz = acc_x / acc_norm, acc_y / acc_norm, acc_z / acc_norm
     else:
-        unit = jerk / jerk_norm
-    along = acc[0] * unit[0] + acc[1] * unit[1] + acc[2] * unit[2]
-    normal = acc - unit * along
-    normal_length = math.sqrt(normal[0] ** 2 + normal[1] ** 2 + normal[2] ** 2)
-    tangential = _kinematic(unit[0], unit[1], unit[2], vxy, vup, vdn)
-    lateral = LATERAL_ACCEL_SCALER * _kinematic(normal[0], normal[1], normal[2], axy, az, az)
+        ux, uy, uz = jerk_x / jerk_norm, jerk_y / jerk_norm, jerk_z / jerk_norm
+    along = acc_x * ux + acc_y * uy + acc_z * uz
+    nx, ny, nz = acc_x - ux * along, acc_y - uy * along, acc_z - uz * along
+    normal_length = math.sqrt(nx * nx + ny * ny + nz * nz)
+    tangential = _kinematic(ux, uy, uz, vxy, vup, vdn)
+    lateral = LATERAL_ACCEL_SCALER * _kinematic(nx, ny, nz, axy, az, az)
     limit = tangential
     if lateral > 0.0 and normal_length > 0.0 and length > 0.0:
         if normal_length / lateral > (length / tangential) ** 2:
             limit = length / math.sqrt(normal_length / lateral)
-    tangential_accel = TANGENTIAL_ACCEL_SCALER * _kinematic(unit[0], unit[1], unit[2], axy, az, az)
+    tangential_accel = TANGENTIAL_ACCEL_SCALER * _kinematic(ux, uy, uz, axy, az, az)
     return limit, tangential_accel, length, acc_norm, jerk_norm
 
 
@@ -214,7 +219,11 @@ def _fly(c, vxy, vup, vdn, axy, az, entry, exit_max, dt, max_steps, state, lag):
     horizontal position and velocity gains and acceleration time constant, the scaler's
     filter time constant, the same three vertically; tau <= 0: a vehicle exactly on its
     target, the scaler always 1). Returns u, the target speed and the vehicle position after
-    every step."""
+    every step.
+
+    Arrays are copied element by element: a slice assignment makes numba compile its
+    shape-mismatch error message (string formatting), seconds of a fresh install's first run.
+    """
     kp, tau, tc = lag[0], lag[2], lag[3]
     u_out = np.empty(max_steps + 1)
     v_out = np.empty(max_steps + 1)
@@ -229,14 +238,16 @@ def _fly(c, vxy, vup, vdn, axy, az, entry, exit_max, dt, max_steps, state, lag):
         for i in range(3):
             state[i] = target[i]
     u_out[0], v_out[0] = u, v
-    x_out[0] = state[0:3]
+    for i in range(3):
+        x_out[0, i] = state[i]
     n = 0
     while u < 1.0 and n < max_steps:
         limit, along, length, acc_norm, jerk_norm = _limits_at(c, u, vxy, vup, vdn, axy, az)
         for i in range(3):
             unit[i] = c[1, i] + 2.0 * c[2, i] * u + 3.0 * c[3, i] * u * u
         if length > 0.0:
-            unit /= length
+            for i in range(3):
+                unit[i] /= length
         scale = 1.0
         if tau > 0.0:
             # AC_WPNav's leg clock: slowed while the vehicle lags its target (+5 % buffer)
@@ -285,7 +296,8 @@ def _fly(c, vxy, vup, vdn, axy, az, entry, exit_max, dt, max_steps, state, lag):
                 state[i] = target[i]
         n += 1
         u_out[n], v_out[n] = u, v
-        x_out[n] = state[0:3]
+        for i in range(3):
+            x_out[n, i] = state[i]
     return u_out[: n + 1], v_out[: n + 1], x_out[: n + 1]
 
 
@@ -367,7 +379,7 @@ def fly_leg(
     tracking: Tracking | None = None,
     state: NDArray[np.float64] | None = None,
     dt: float = WPNAV_DT,
-    max_time: float = 600.0,
+    max_time: float = MAX_LEG_TIME,
 ) -> LegFlight:
     """The target's motion along ``leg`` from ``entry_speed`` until u reaches 1, braking
     towards ``exit_speed_max`` (the next leg's entry limit, 0 for a stop), and the vehicle
