@@ -10,6 +10,10 @@ $(BIN)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@# Compile numba's kernels into its cache as part of the install (a minute on 2 cores,
+	@# BENCHMARKS.md "flycrane plan end to end"): one plan of the Rescue runs every kernel
+	@# the main job needs, so a user's first plan starts warm.
+	$(BIN)/flycrane plan --out $(VENV)/compile-kernels > /dev/null
 	touch $@
 
 # The main job on embedded defaults: plan the Rescue benchmark and export its missions.

@@ -98,14 +98,14 @@ class BiTRRTConfig:
     step: float | None = None  #: largest extension; None: STEP_FRACTION x the space's extent
     #: share of the extensions whose new node's alphas are repaired (the others keep the
     #: target's: the formation must also explore, e.g. narrow before a corridor)
-    repair_share: float = 0.5
+    repair_share: float = 0.7
     translate_share: float = 0.3  #: extensions that move the nearest node's position only
-    rotate_share: float = 0.2  #: extensions that turn and reshape it in place only
+    rotate_share: float = 0.3  #: extensions that turn and reshape it in place only
     local_share: float = 0.2  #: targets near a random node of the growing tree
     other_share: float = 0.4  #: targets near a random node of the other tree
     local_radius: float = 1.0  #: the local targets' distance [state-space distance]
     #: least length of a partial extension [state-space distance]; 0: none
-    partial: float = 0.3
+    partial: float = 0.2
     #: where the straight motion to a valid new node fails, try reshaping the formation in
     #: place first (:func:`~flycrane.planning.extension_kernel.reshape_first`)
     reshape_first: bool = True
