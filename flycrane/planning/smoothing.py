@@ -75,7 +75,10 @@ def shortcut_path(
             continue
         if config.cost_aware:
             old = np.concatenate([q_a[None], path[i + 1 : j + 1], q_b[None]])
-            if work(np.stack([q_a, q_b])) > work(old):
+            added = work(np.stack([q_a, q_b]))
+            # Not finite: a sample between the motion check's own samples is infeasible
+            # (inf - inf is NaN, which no comparison refuses): never take such a shortcut.
+            if not np.isfinite(added) or added > work(old):
                 continue
         path = np.concatenate([path[: i + 1], q_a[None], q_b[None], path[j + 1 :]])
     return _without_repeats(path, space)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from flycrane.planning import bitrrt
+from flycrane.planning import bitrrt, bitrrt_kernel
 from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig, MeshScene
 from flycrane.planning.bitrrt_kernel import MARGIN
 from flycrane.planning.planners import PlannerOptions, make_planner, plan
@@ -146,3 +146,9 @@ def test_mesh_scenes_are_refused_naming_the_alternative():
     # Left to the default, such a scene is planned by T-RRT, which checks meshes with fcl.
     assert make_planner(meshed.space, meshed.validity, PlannerOptions()).name == "trrt"
     assert make_planner(problem.space, problem.validity, PlannerOptions()).name == "bitrrt"
+
+
+def test_the_kernels_parameter_indices_follow_the_params_fields():
+    """The compiled loop reads its parameters by index (P_<FIELD>)."""
+    for index, name in enumerate(bitrrt_kernel.Params.__dataclass_fields__):
+        assert getattr(bitrrt_kernel, f"P_{name.upper()}") == index, name
