@@ -19,7 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from flycrane.metrics import PathMetrics, path_metrics
 from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig
-from flycrane.planning.interfaces import CompiledChecker
+from flycrane.planning.interfaces import CompiledChecker, Planner
 from flycrane.planning.ompl_peers import OmplPlanner
 from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
@@ -135,10 +135,13 @@ def plan(
     options: PlannerOptions,
     should_stop: Callable[[], bool] | None = None,
     progress: Callable[[PlanningProgress], None] | None = None,
+    planner: Planner | None = None,
 ) -> PlanningOutcome:
-    """Plan within ``options.time_budget``, then smooth and measure the path."""
+    """Plan within ``options.time_budget``, then smooth and measure the path. ``planner``:
+    one built with settings the options do not carry (benchmarks of variants); by default
+    :func:`make_planner`'s."""
     termination = TerminationCondition(options.time_budget, should_stop)
-    planner = make_planner(space, validity, options)
+    planner = planner or make_planner(space, validity, options)
     result = planner.solve(start, goal, termination, seed=options.seed, progress=progress)
     if not result.status.solved:
         return PlanningOutcome(result, np.empty((0, 9)), None, 0.0)

@@ -1,0 +1,99 @@
+"""Path quality of bitrrt variants against T-RRT: Table I's costs and Fig. 6's least margins.
+
+    python benchmarks/planner_quality.py --scenes rescue puzzle --runs 100 \\
+        --variant default '{}' --variant repair-0.2 '{"repair_share": 0.2}' --trrt
+
+Each variant is a name and the BiTRRTConfig fields it changes; ``--trrt`` adds the paper's
+T-RRT. Every (scene, variant, seed) is planned, smoothed and measured as ``flycrane bench``
+does (:func:`flycrane.planning.planners.plan`), in a pool of worker processes; the table
+gives per scene and variant the solved runs, the mean average and maximum cost, and the
+least margins along the paths (:func:`flycrane.profiles.least_margins`: median and worst
+run). BENCHMARKS.md ("Planner v2", "Against T-RRT") records the runs behind bitrrt's
+``repair_share``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+
+import numpy as np
+
+from flycrane.planning.bitrrt import BiTRRT
+from flycrane.planning.planners import PlannerOptions, plan
+from flycrane.planning.problem import PlanningProblem
+from flycrane.profiles import least_margins, path_profile
+
+TRRT = "trrt"
+
+
+def run(scene: str, variant: str, fields: str, seed: int, budget: float) -> tuple | None:
+    """(avgC, maxC, least slack, thrust and headroom margins) of one smoothed path, or None
+    if not solved."""
+    problem = PlanningProblem.named(scene)
+    algorithm = "trrt" if variant == TRRT else "bitrrt"
+    options = PlannerOptions(algorithm=algorithm, seed=seed, time_budget=budget)
+    planner = None
+    if algorithm == "bitrrt":
+        config = replace(options.bitrrt_config(), **json.loads(fields))
+        planner = BiTRRT(problem.space, problem.validity, config)
+    outcome = plan(
+        problem.space, problem.validity, problem.start, problem.goal, options, planner=planner
+    )
+    if outcome.metrics is None:
+        return None
+    margins = least_margins(
+        path_profile(problem.system, problem.space, outcome.path), problem.system
+    )
+    return (
+        outcome.metrics.avg_cost,
+        outcome.metrics.max_cost,
+        margins.slack,
+        margins.thrust,
+        margins.headroom,
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", required=True)
+    parser.add_argument("--runs", type=int, default=100)
+    parser.add_argument("--budget", type=float, default=60.0)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--variant", nargs=2, action="append", default=[], metavar=("NAME", "JSON"))
+    parser.add_argument("--trrt", action="store_true", help="also the paper's T-RRT")
+    args = parser.parse_args()
+    variants = [*args.variant, *([(TRRT, "")] if args.trrt else [])]
+    jobs = [
+        (scene, name, fields, seed, args.budget)
+        for scene in args.scenes
+        for name, fields in variants
+        for seed in range(args.runs)
+    ]
+    with ProcessPoolExecutor(args.workers) as pool:
+        results = list(pool.map(run, *zip(*jobs, strict=True)))
+    print(f"{'scene':<14} {'variant':<14} solved  avgC mean  maxC mean  slack [worst]  "
+          "thrust [worst]  headroom [worst]")  # fmt: skip
+    for scene in args.scenes:
+        for name, _ in variants:
+            rows = np.array(
+                [r for job, r in zip(jobs, results, strict=True)
+                 if job[:2] == (scene, name) and r is not None]
+            )  # fmt: skip
+            if not len(rows):
+                print(f"{scene:<14} {name:<14} 0/{args.runs}")
+                continue
+            margins = "  ".join(
+                f"{np.median(rows[:, k]):5.2f} [{rows[:, k].min():5.2f}]" for k in (2, 3, 4)
+            )
+            print(
+                f"{scene:<14} {name:<14} {len(rows):3d}/{args.runs:<3d} {rows[:, 0].mean():9.3g} "
+                f"{rows[:, 1].mean():9.4g}  {margins}",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
