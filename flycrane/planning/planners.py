@@ -68,7 +68,14 @@ class PlannerOptions(BaseModel):
 
     @model_validator(mode="after")
     def _options_of_the_algorithm(self) -> PlannerOptions:
-        unused = [name for name in TRRT_ONLY if name in self.model_fields_set]
+        # Set to something other than its default: a task written out whole (task.json)
+        # carries every option and must read back.
+        unused = [
+            name
+            for name in TRRT_ONLY
+            if name in self.model_fields_set
+            and getattr(self, name) != type(self).model_fields[name].default
+        ]
         if self.algorithm == "bitrrt" and unused:
             raise ValueError(
                 f"{', '.join(unused)}: options of trrt and rrt; bitrrt grows two trees "

@@ -152,3 +152,9 @@ def test_the_kernels_parameter_indices_follow_the_params_fields():
     """The compiled loop reads its parameters by index (P_<FIELD>)."""
     for index, name in enumerate(bitrrt_kernel.Params.__dataclass_fields__):
         assert getattr(bitrrt_kernel, f"P_{name.upper()}") == index, name
+
+
+def test_options_written_out_whole_read_back():
+    """A task file (task.json) carries every option, T-RRT's at their defaults too."""
+    options = PlannerOptions(algorithm="bitrrt", seed=4)
+    assert PlannerOptions.model_validate_json(options.model_dump_json()) == options
