@@ -33,16 +33,24 @@ def _bucket(x: int, y: int, z: int) -> int:
 
 
 @numba.njit(cache=True, nogil=True)
+def _squared_distance(embeddings, row, point, bound) -> float:
+    """|embeddings[row] - point|^2, or a partial sum >= bound as soon as one is reached (the
+    row cannot be the nearest then)."""
+    total = 0.0
+    for a in range(EMBEDDING):
+        d = embeddings[row, a] - point[a]
+        total += d * d
+        if total >= bound:
+            break
+    return total
+
+
+@numba.njit(cache=True, nogil=True)
 def brute_nearest(embeddings, count, point) -> tuple[int, float]:
     """Index of the row of embeddings[:count] nearest to point (18,), and the distance."""
     best, index = math.inf, -1
     for row in range(count):
-        total = 0.0
-        for a in range(EMBEDDING):
-            d = embeddings[row, a] - point[a]
-            total += d * d
-            if total >= best:
-                break
+        total = _squared_distance(embeddings, row, point, best)
         if total < best:
             best, index = total, row
     return index, math.sqrt(best)
@@ -80,12 +88,7 @@ def grid_nearest(head, chain, cells, embeddings, count, point, cell) -> tuple[in
                     node = head[_bucket(x, y, z)]
                     while node >= 0:
                         if cells[node, 0] == x and cells[node, 1] == y and cells[node, 2] == z:
-                            total = 0.0
-                            for a in range(EMBEDDING):
-                                d = embeddings[node, a] - point[a]
-                                total += d * d
-                                if total >= best:
-                                    break
+                            total = _squared_distance(embeddings, node, point, best)
                             if total < best:
                                 best, index = total, node
                         node = chain[node]
