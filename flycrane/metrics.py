@@ -33,7 +33,11 @@ def resample_path(
 
 
 def mechanical_work(costs: NDArray[np.float64]) -> float:
-    """Sum of the positive cost variations along a sequence of costs."""
+    """Sum of the positive cost variations along a sequence of costs; +inf if the sequence
+    passes an infeasible configuration (cost +inf), where the climb is unbounded."""
+    costs = np.asarray(costs, dtype=float)
+    if not np.isfinite(costs).all():
+        return float("inf")
     return float(np.clip(np.diff(costs), 0.0, None).sum())
 
 

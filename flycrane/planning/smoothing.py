@@ -76,8 +76,8 @@ def shortcut_path(
         if config.cost_aware:
             old = np.concatenate([q_a[None], path[i + 1 : j + 1], q_b[None]])
             added = work(np.stack([q_a, q_b]))
-            # Not finite: a sample between the motion check's own samples is infeasible
-            # (inf - inf is NaN, which no comparison refuses): never take such a shortcut.
+            # Infinite: a sample between the motion check's own samples is infeasible; never
+            # take such a shortcut (even where the replaced stretch's work is infinite too).
             if not np.isfinite(added) or added > work(old):
                 continue
         path = np.concatenate([path[: i + 1], q_a[None], q_b[None], path[j + 1 :]])

@@ -74,6 +74,7 @@ def test_metrics_by_hand():
     assert metrics.mechanical_work == pytest.approx(1.0)
     assert metrics.cost_integral == pytest.approx(1.5)
     assert mechanical_work(np.array([1.0, 3.0, 2.0, 5.0])) == pytest.approx(5.0)
+    assert mechanical_work(np.array([1.0, np.inf, np.inf, 2.0])) == np.inf  # not NaN
 
 
 def test_shortcut_never_lengthens_and_stays_valid(system):
