@@ -98,7 +98,9 @@ def _figure():
 def _save(figure, out: str | Path, title: str) -> Path:
     if title:
         figure.suptitle(title, parse_math=False)  # a task name is text, not mathtext
-    figure.tight_layout()
+    # Fixed margins: tight_layout draws the figure once more to measure it (a third of the
+    # plot's time), for a layout that these two fixed panels do not need.
+    figure.subplots_adjust(left=0.06, right=0.98, bottom=0.12, top=0.86, wspace=0.18)
     out = Path(out)
     figure.savefig(out, dpi=120)
     return out
