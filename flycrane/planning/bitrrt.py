@@ -207,27 +207,14 @@ class BiTRRT:
         self.space, self.validity, self.name = space, validity, name
 
     def _params(self, free_level: float) -> Params:
-        cfg = self.config
-        assert cfg.step and cfg.frontier_threshold and cfg.connection_range  # set in __init__
+        """The loop's numbers: the config's fields of the same names (their Nones filled in
+        by __init__), the cost below which climbs are free, the checker's resolution."""
+        given = {"free_level": free_level, "resolution": self.validity.resolution}
         return Params(
-            step=cfg.step,
-            connection_range=cfg.connection_range,
-            frontier_threshold=cfg.frontier_threshold,
-            frontier_ratio=cfg.frontier_ratio,
-            temperature_rate=cfg.temperature_rate,
-            cost_range_fraction=cfg.cost_range_fraction,
-            cost_threshold=cfg.cost_threshold,
-            free_level=free_level,
-            log_cost=float(cfg.log_cost),
-            repair_share=cfg.repair_share,
-            translate_share=cfg.translate_share,
-            rotate_share=cfg.rotate_share,
-            local_share=cfg.local_share,
-            other_share=cfg.other_share,
-            local_radius=cfg.local_radius,
-            partial=cfg.partial,
-            reshape_first=float(cfg.reshape_first),
-            resolution=self.validity.resolution,
+            **{
+                name: given[name] if name in given else float(getattr(self.config, name))
+                for name in Params.__dataclass_fields__
+            }
         )
 
     def solve(
