@@ -26,7 +26,7 @@ from missions.autopilots.spline import SpeedLimits
 from missions.formats import mission_from_json
 from missions.items import MavCmd
 from missions.options import MissionOptions
-from missions.pipeline import run_task
+from missions.pipeline import _self_contained, run_task
 from missions.task import TaskSpec, resolve_task
 from tests.missions.helpers import applied_limits, approximate_geodetic
 
@@ -166,8 +166,13 @@ def test_bitrrt_asked_for_in_a_scene_with_meshes_is_refused_naming_the_field():
         )
     assert [p.field for p in caught.value.problems] == ["planner.algorithm"]
     assert "trrt" in str(caught.value)
-    resolved = resolve_task(TaskSpec(scene=scene, mission=exact))
+    task = TaskSpec(scene=scene, mission=exact)
+    resolved = resolve_task(task)
     assert resolved.problem.validity.has_meshes
+    # task.json names the planner that ran, and reads back as a task (the flight report's)
+    written = _self_contained(task, resolved)
+    assert written["planner"]["algorithm"] == "trrt"
+    resolve_task(TaskSpec.model_validate(written))
 
 
 def test_plan_command_prints_where_the_missions_are(tmp_path, capsys):
