@@ -1,11 +1,13 @@
 """Path quality of bitrrt variants against T-RRT: Table I's costs and Fig. 6's least margins.
 
     python benchmarks/planner_quality.py --scenes rescue puzzle --runs 100 \\
-        --variant default '{}' --variant repair-0.2 '{"repair_share": 0.2}' --trrt
+        --variant default '{}' --variant repair-0.2 '{"repair_share": 0.2}' \\
+        --variant unpolished '{"polish": false}' --trrt
 
-Each variant is a name and the BiTRRTConfig fields it changes; ``--trrt`` adds the paper's
-T-RRT. Every (scene, variant, seed) is planned, smoothed and measured as ``flycrane bench``
-does (:func:`flycrane.planning.planners.plan`), in a pool of worker processes; the table
+Each variant is a name and the fields it changes, of PlannerOptions (e.g. ``polish``) or
+else of BiTRRTConfig; ``--trrt`` adds the paper's T-RRT. Every (scene, variant, seed) is
+planned, smoothed and measured as ``flycrane bench`` does
+(:func:`flycrane.planning.planners.plan`), in a pool of worker processes; the table
 gives per scene and variant the solved runs, the mean average and maximum cost, and the
 least margins along the paths (:func:`flycrane.profiles.least_margins`: median and worst
 run). BENCHMARKS.md ("Planner v2", "Against T-RRT") records the runs behind bitrrt's
@@ -34,10 +36,12 @@ def run(scene: str, variant: str, fields: str, seed: int, budget: float) -> tupl
     if not solved."""
     problem = PlanningProblem.named(scene)
     algorithm = "trrt" if variant == TRRT else "bitrrt"
-    options = PlannerOptions(algorithm=algorithm, seed=seed, time_budget=budget)
+    changes = json.loads(fields or "{}")
+    option_changes = {k: changes.pop(k) for k in list(changes) if k in PlannerOptions.model_fields}
+    options = PlannerOptions(algorithm=algorithm, seed=seed, time_budget=budget, **option_changes)
     planner = None
     if algorithm == "bitrrt":
-        config = replace(options.bitrrt_config(), **json.loads(fields))
+        config = replace(options.bitrrt_config(), **changes)
         planner = BiTRRT(problem.space, problem.validity, config)
     outcome = plan(
         problem.space, problem.validity, problem.start, problem.goal, options, planner=planner

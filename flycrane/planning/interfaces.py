@@ -10,6 +10,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from flycrane.cable_system import CableSystem
 from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
 from flycrane.planning.validity_kernel import CompiledValidity
 
@@ -33,6 +34,7 @@ class Validity(Protocol):
 class CompiledChecker(Validity, Protocol):
     """A validity checker whose checks compiled planners can call without Python."""
 
+    system: CableSystem  #: the system whose statics the checks use
     compiled: CompiledValidity
     work: tuple
     resolution: float

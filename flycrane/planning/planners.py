@@ -1,8 +1,8 @@
-"""Planner selection and the planning run: plan, smooth, measure.
+"""Planner selection and the planning run: plan, smooth, polish, measure.
 
 :class:`PlannerOptions` is the user-facing schema (tasks, CLI, benchmark); :func:`plan`
 runs the chosen planner, smooths its path with random shortcuts (cost-aware for the
-cost-aware planners) and computes the path metrics.
+cost-aware planners), polishes its formation if asked and computes the path metrics.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from flycrane.metrics import PathMetrics, path_metrics
 from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig, MeshScene
+from flycrane.planning.formation_polish import PolishConfig, polish_formation
 from flycrane.planning.interfaces import CompiledChecker, Planner
 from flycrane.planning.ompl_peers import OmplPlanner
 from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
@@ -37,7 +38,8 @@ TRRT_ONLY = ("goal_bias", "goal_connection", "init_temperature", "refinement_rat
 class PlannerOptions(BaseModel):
     """Which planner, with which parameters (default: ``bitrrt``, which solves users'
     scenes T-RRT does not and costs less, though it keeps less thrust margin on the
-    Puzzle: BENCHMARKS.md "Planner v2"; ``trrt`` is the paper's, for Table I)."""
+    Puzzle unless its formation is polished: BENCHMARKS.md "Planner v2"; ``trrt`` is the
+    paper's, for Table I)."""
 
     # Finite numbers only; seeds and counts are integers, not booleans or strings.
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
@@ -65,6 +67,12 @@ class PlannerOptions(BaseModel):
     cost_threshold: float | None = Field(None, gt=0, description="c_max; None: no threshold")
     smoothing_attempts: int = Field(
         100, ge=0, le=100_000, strict=True, description="random shortcuts"
+    )
+    polish: bool = Field(
+        False,
+        description="reshape the formation at the waypoints to raise the path's least "
+        "thrust margin (flycrane/planning/formation_polish.py); off by default: its "
+        "reshaped formations are not yet proven in flight (README, Known limitations)",
     )
 
     @model_validator(mode="after")
@@ -142,12 +150,12 @@ def make_planner(space: ConfigurationSpace, validity: CompiledChecker, options: 
 
 @dataclass(frozen=True)
 class PlanningOutcome:
-    """A planner's result, its smoothed path and the metrics of that path."""
+    """A planner's result, its smoothed (and polished) path and the metrics of that path."""
 
     result: PlannerResult
     path: NDArray[np.float64]  #: smoothed path (M, 9); empty unless solved
     metrics: PathMetrics | None  #: of the smoothed path
-    smoothing_time: float  #: seconds spent smoothing
+    smoothing_time: float  #: seconds spent smoothing and polishing
 
 
 def plan(
@@ -160,9 +168,10 @@ def plan(
     progress: Callable[[PlanningProgress], None] | None = None,
     planner: Planner | None = None,
 ) -> PlanningOutcome:
-    """Plan within ``options.time_budget``, then smooth and measure the path. ``planner``:
-    one built with settings the options do not carry (benchmarks of variants); by default
-    :func:`make_planner`'s."""
+    """Plan within ``options.time_budget``, then smooth, polish (if asked) and measure the
+    path.
+    ``planner``: one built with settings the options do not carry (benchmarks of variants);
+    by default :func:`make_planner`'s."""
     termination = TerminationCondition(options.time_budget, should_stop)
     planner = planner or make_planner(space, validity, options)
     result = planner.solve(start, goal, termination, seed=options.seed, progress=progress)
@@ -177,5 +186,14 @@ def plan(
         seed=options.seed,
         termination=TerminationCondition(float("inf"), should_stop),
     )
+    if options.polish:
+        smooth = polish_formation(
+            smooth,
+            space,
+            validity,
+            validity.system,
+            PolishConfig(),
+            termination=TerminationCondition(float("inf"), should_stop),
+        )
     elapsed = time.perf_counter() - clock
     return PlanningOutcome(result, smooth, path_metrics(smooth, space, validity.cost), elapsed)
