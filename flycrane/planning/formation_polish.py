@@ -31,6 +31,10 @@ A soft minimum (-tau log sum exp(-t / tau)) rather than the minimum: where sever
 waypoints share a low-margin stretch, moving one of them cannot raise the stretch's hard
 minimum, which its neighbours hold, but it raises the soft one, and the next pass moves the
 neighbours. All margins are measured on the path discretized at the metrics resolution.
+
+The polish is asked for (``PlannerOptions.polish``), not the default: the formation it
+reshapes in a narrow passage is flown less accurately, and on three SITL autopilots a
+polished Puzzle path put the long bar into the slab (BENCHMARKS.md, "Formation polish").
 """
 
 from __future__ import annotations

@@ -71,8 +71,8 @@ class PlannerOptions(BaseModel):
     polish: bool = Field(
         False,
         description="reshape the formation at the waypoints to raise the path's least "
-        "thrust margin (flycrane/planning/formation_polish.py); off by default: its "
-        "reshaped formations are not yet proven in flight (README, Known limitations)",
+        "thrust margin (flycrane/planning/formation_polish.py); off by default: a polished "
+        "Puzzle path flew into the slab on SITL (README, Known limitations)",
     )
 
     @model_validator(mode="after")
