@@ -6,6 +6,7 @@ time."""
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,7 +36,8 @@ def _end_seqs(task_dir: Path) -> tuple[int, int, int]:
 @dataclass(frozen=True)
 class ContactWindow:
     """A set-down: between these mission times, touching these surfaces is the leg's
-    intended end (:mod:`missions.vertical_legs`)."""
+    intended end (:mod:`missions.vertical_legs`); the window stays open to the end of the
+    flight (``end`` inf), because the load stays on them through the final hold."""
 
     start: float
     end: float
@@ -101,7 +103,7 @@ class PlannedFlight:
             timing_tolerance=tracks["timing_tolerance"],
             end_seq=_end_seqs(task_dir),
             contact_windows=tuple(
-                ContactWindow(leg["start_time"], leg["end_time"], tuple(leg["surfaces"]))
+                ContactWindow(leg["start_time"], math.inf, tuple(leg["surfaces"]))
                 for leg in [tracks.get("set_down")]
                 if leg is not None
             ),

@@ -20,8 +20,10 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
+from flycrane.planning.planners import PlannerOptions
 from missions.mavlink import Imperfections
-from tests.missions.test_replay import Exported, fly, late_drones
+from missions.task import TaskSpec
+from tests.missions.test_replay import Exported, export, fly, late_drones
 from tests.missions.test_replay import rescue as rescue
 
 from ..mavlink.conftest import no_leaked_threads  # noqa: F401 (autouse fixture)
@@ -79,3 +81,24 @@ def test_a_release_beyond_the_tolerance_is_reported_unsafe_and_its_spread_measur
     assert any("release spread" in r for r in report["verdict"]["reasons"])
     progress = np.array(report["series"]["progress"]["plan_time"], dtype=float)
     assert np.nanmax(np.nanmax(progress, axis=1) - np.nanmin(progress, axis=1)) >= 0.5 * late
+
+
+def test_a_set_down_load_may_rest_on_its_surfaces_through_the_final_hold(
+    tmp_path_factory, tmp_path
+):
+    """The Rescue's path with its formation polished (seed 0): in the hold after the
+    set-down leg, the mocks' positions put the footbridge 0.054 m into the west roof, and
+    a report whose contact window closed with the leg called the flight unsafe. The
+    load is meant to stay down: contact with the set-down's surfaces is allowed to the end,
+    and nothing else is."""
+    task = TaskSpec(planner=PlannerOptions(seed=0, time_budget=60, polish=True))
+    exported = export(task, tmp_path_factory)
+    report = report_of(exported, tmp_path, [0.0, 0.0, 0.0])
+    assert report["verdict"]["safe"], report["verdict"]["reasons"]
+    assert exported.set_down is not None
+    estimated = report["estimated"]
+    # The least clearance is to a set-down surface after the leg began, or positive.
+    assert estimated["least_clearance"] > 0 or (
+        estimated["least_clearance_at"] >= exported.set_down["start_time"]
+        and any(s in estimated["least_clearance_bodies"] for s in exported.set_down["surfaces"])
+    )
