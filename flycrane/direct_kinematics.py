@@ -11,6 +11,10 @@ The equations have several solutions (e.g. the platform mirrored above the drone
 iteration starts from ``initial`` when given (the planned configuration, in practice) and
 otherwise from the rigid fit (Kabsch) of the drone triangle at alpha = 1 rad onto the
 measured one, which lies in the hanging branch.
+
+This is the readable reference; the timing tolerance, which solves some 60 simulated
+flights per task, uses the compiled kernel in :mod:`flycrane.direct_kinematics_kernel`,
+which the tests compare against it.
 """
 
 from __future__ import annotations
@@ -69,6 +73,38 @@ def _rigid_fit(local: NDArray, world: NDArray) -> tuple[NDArray, NDArray]:
     return (wc - lc @ np.swapaxes(r, -1, -2))[..., 0, :], r
 
 
+def check_drone_positions(drones: ArrayLike) -> NDArray[np.float64]:
+    """Drone positions (N, 3, 3) or (3, 3) as a finite (N, 3, 3) array, else an error."""
+    a = np.asarray(drones, dtype=float)
+    if a.ndim == 2:
+        a = a[None]
+    if a.ndim != 3 or a.shape[1:] != (3, 3) or not np.all(np.isfinite(a)):
+        raise ConfigurationError(
+            [FieldProblem("drones", f"expected finite (N, 3, 3) positions, got {np.shape(drones)}")]
+        )
+    return a
+
+
+def result_from_pose(
+    system: CableSystem,
+    drones: NDArray[np.float64],
+    p: NDArray[np.float64],
+    r: NDArray[np.float64],
+    residual: NDArray[np.float64],
+) -> DirectKinematicsResult:
+    """The result of a solved pose p (N, 3), R (N, 3, 3): the alphas follow from each drone's
+    position about its edge; ``residual`` (N, 6) is the solve's last length error."""
+    relative = np.einsum("nba,nkb->nka", r, drones - p[:, None, :]) - system.drone_foot
+    alpha = np.arctan2(
+        np.einsum("nka,ka->nk", relative, system.drone_up),
+        np.einsum("nka,ka->nk", relative, system.drone_outward),
+    )
+    q = np.concatenate([p, tilt_torsion_from_matrix(r), alpha], axis=1)
+    return DirectKinematicsResult(
+        q=q, length_error=residual, converged=np.all(np.abs(residual) <= LENGTH_TOLERANCE, 1)
+    )
+
+
 def configuration_from_drone_positions(
     system: CableSystem,
     drones: ArrayLike,
@@ -84,13 +120,7 @@ def configuration_from_drone_positions(
     initial : array-like, optional
         Configurations (N, 9) to start from, selecting the solution branch.
     """
-    a = np.asarray(drones, dtype=float)
-    if a.ndim == 2:
-        a = a[None]
-    if a.ndim != 3 or a.shape[1:] != (3, 3) or not np.all(np.isfinite(a)):
-        raise ConfigurationError(
-            [FieldProblem("drones", f"expected finite (N, 3, 3) positions, got {np.shape(drones)}")]
-        )
+    a = check_drone_positions(drones)
     if initial is None:
         p, r = _rigid_fit(drone_positions_in_platform_frame(system, np.ones((len(a), 3))), a)
     else:
@@ -113,12 +143,4 @@ def configuration_from_drone_positions(
         )[..., 0]
         p = p + step[:, :3]
         r = _rotation_from_vector(step[:, 3:]) @ r
-    relative = np.einsum("nba,nkb->nka", r, a - p[:, None, :]) - system.drone_foot
-    alpha = np.arctan2(
-        np.einsum("nka,ka->nk", relative, system.drone_up),
-        np.einsum("nka,ka->nk", relative, system.drone_outward),
-    )
-    q = np.concatenate([p, tilt_torsion_from_matrix(r), alpha], axis=1)
-    return DirectKinematicsResult(
-        q=q, length_error=residual, converged=np.all(np.abs(residual) <= LENGTH_TOLERANCE, 1)
-    )
+    return result_from_pose(system, a, p, r, residual)

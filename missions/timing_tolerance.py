@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.cable_system import CableSystem
-from flycrane.direct_kinematics import configuration_from_drone_positions
+from flycrane.direct_kinematics_kernel import compiled_direct_kinematics
 from missions.flight_plan import FlightPlan
 from missions.options import MissionOptions
 from missions.tracks import Track
@@ -79,7 +79,7 @@ def flight_is_safe(
     drones = plan.motion.at_each(local)
     # Start the reconstruction from the plan at the drones' mean progress.
     initial = planned_configurations(track, plan.progress_time(np.clip(local.mean(axis=1), 0, end)))
-    rebuilt = configuration_from_drone_positions(system, drones, initial=initial)
+    rebuilt = compiled_direct_kinematics(system, drones, initial)
     return bool(np.all(rebuilt.converged & validity(rebuilt.q)))
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -95,36 +96,53 @@ def time_law(
         options.max_drone_speed / np.maximum(g.max(axis=1), 1e-12),
         options.max_angular_rate / np.maximum(w, 1e-12),
     )
-
-    def largest(c: list[float], g_now: list[float], gap: float, length: float) -> float:
-        """Largest V with g_now V - c <= a (gap + length / V) / 2 for every drone: the
-        positive root of g V^2 - (c + a gap / 2) V - a length / 2 = 0."""
-        best = math.inf
-        for c_j, g_j in zip(c, g_now, strict=True):
-            if g_j > 1e-12:
-                b = c_j + a * gap / 2
-                best = min(best, (b + math.sqrt(b * b + 2 * g_j * a * length)) / (2 * g_j))
-        return best
-
-    # The sweeps visit one segment at a time: on Python floats, as numpy's per-call cost on
-    # three-element arrays was most of their time.
-    rows, lengths, v = g.tolist(), ds.tolist(), speed.tolist()
-    n = len(v)
-    rest = [0.0, 0.0, 0.0]
-    for _ in range(max_sweeps):
-        before = np.array(v)
-        for k in range(n):  # accelerating into segment k (from rest before the first)
-            c = [g_j * v[k - 1] for g_j in rows[k - 1]] if k else rest
-            gap = lengths[k - 1] / v[k - 1] if k else 0.0
-            v[k] = min(v[k], largest(c, rows[k], gap, lengths[k]))
-        for k in range(n - 1, -1, -1):  # decelerating out of segment k (to rest after the last)
-            c = [g_j * v[k + 1] for g_j in rows[k + 1]] if k < n - 1 else rest
-            gap = lengths[k + 1] / v[k + 1] if k < n - 1 else 0.0
-            v[k] = min(v[k], largest(c, rows[k], gap, lengths[k]))
-        if np.allclose(v, before, rtol=1e-9, atol=0.0):
-            break
-    speed = np.array(v)
+    _lower_speeds(g, ds, speed, a, max_sweeps)
     return np.concatenate([[0.0], np.cumsum(ds / speed)])
+
+
+@numba.njit(cache=True, nogil=True)
+def _largest(a: float, c: NDArray, g: NDArray, k: int, gap: float, length: float) -> float:
+    """Largest V with g_jk V - c_j <= a (gap + length / V) / 2 for every drone j: the
+    positive root of g V^2 - (c + a gap / 2) V - a length / 2 = 0."""
+    best = math.inf
+    for j in range(3):
+        if g[k, j] > 1e-12:
+            b = c[j] + a * gap / 2
+            best = min(best, (b + math.sqrt(b * b + 2 * g[k, j] * a * length)) / (2 * g[k, j]))
+    return best
+
+
+@numba.njit(cache=True, nogil=True)
+def _lower_speeds(g: NDArray, lengths: NDArray, v: NDArray, a: float, max_sweeps: int) -> None:
+    """:func:`time_law`'s sweeps, lowering the segment speeds v (K-1,) in place. Compiled:
+    they visit one segment at a time, 70,000 root evaluations for the Rescue, 0.13 s on
+    Python floats and 5 ms here, in the same floating-point operations in the same order
+    (the Rescue's times are bit for bit those of the Python sweeps)."""
+    n = len(v)
+    c, before = np.zeros(3), np.empty(n)
+    for _ in range(max_sweeps):
+        for k in range(n):
+            before[k] = v[k]
+        for k in range(n):  # accelerating into segment k (from rest before the first)
+            gap = 0.0
+            for j in range(3):
+                c[j] = g[k - 1, j] * v[k - 1] if k else 0.0
+            if k:
+                gap = lengths[k - 1] / v[k - 1]
+            v[k] = min(v[k], _largest(a, c, g, k, gap, lengths[k]))
+        for k in range(n - 1, -1, -1):  # decelerating out of segment k (to rest after the last)
+            gap = 0.0
+            for j in range(3):
+                c[j] = g[k + 1, j] * v[k + 1] if k < n - 1 else 0.0
+            if k < n - 1:
+                gap = lengths[k + 1] / v[k + 1]
+            v[k] = min(v[k], _largest(a, c, g, k, gap, lengths[k]))
+        # Settled once a pair of sweeps moved no speed by more than 1e-9 of itself.
+        settled = True
+        for k in range(n):
+            settled = settled and abs(v[k] - before[k]) <= 1e-9 * abs(before[k])
+        if settled:
+            return
 
 
 def track_from_path(

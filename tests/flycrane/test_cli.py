@@ -68,3 +68,20 @@ def test_a_command_loads_only_its_own_plug_in():
     assert loaded == "[]"
     for command in ("plan", "fly-sitl", "flight-report", "mock-autopilot", "serve", "statics"):
         assert repr(command) in names
+
+
+def test_the_command_exits_with_the_status_and_output_of_main():
+    """``python -m flycrane.cli`` (and the console script) run :func:`flycrane.cli.run`,
+    which skips the interpreter's final garbage collection: output and status survive it."""
+    ok = subprocess.run(
+        [sys.executable, "-m", "flycrane.cli", "statics", "--json"],
+        capture_output=True,
+        text=True,
+    )
+    assert ok.returncode == 0 and json.loads(ok.stdout)["feasible"] is True
+    bad = subprocess.run(
+        [sys.executable, "-m", "flycrane.cli", "statics", "--q", *"0 0 5 0 -1 0 1 1 1".split()],
+        capture_output=True,
+        text=True,
+    )
+    assert bad.returncode == 2 and "q.theta" in bad.stderr
