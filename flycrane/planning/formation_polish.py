@@ -167,6 +167,7 @@ def polish_formation(
             )
             q = with_alphas(found.x)
             new = stretch(a, q, b)
+            # A gain of at least 1 mN, so that a sweep of rounding-level moves ends the polish.
             if (
                 new.soft_thrust(config.softness) > current.soft_thrust(config.softness) + 1e-3
                 and new.thrust.min() >= current.thrust.min()
