@@ -152,8 +152,8 @@ def test_an_unknown_scene_is_an_input_error_naming_the_scene_field():
 
 
 def test_bitrrt_asked_for_in_a_scene_with_meshes_is_refused_naming_the_field():
-    """bitrrt checks primitive shapes only: asked for by name it is refused at once; left
-    to the default, a mesh scene is planned by T-RRT (flycrane/planning/planners.py)."""
+    """bitrrt checks primitive shapes only: asked for in a mesh scene it is refused at once;
+    the default, T-RRT, plans it (flycrane/planning/planners.py)."""
     scene = load_scene("rescue")[0].model_dump(mode="json")
     scene["obstacles"].append(
         {"kind": "mesh", "name": "sign", "vertices": [[9, 4, 0], [10, 4, 0], [9, 5, 1]],
@@ -169,7 +169,7 @@ def test_bitrrt_asked_for_in_a_scene_with_meshes_is_refused_naming_the_field():
     task = TaskSpec(scene=scene, mission=exact)
     resolved = resolve_task(task)
     assert resolved.problem.validity.has_meshes
-    # task.json names the planner that ran, and reads back as a task (the flight report's)
+    # task.json names the planner, and reads back as a task (the flight report's)
     written = _self_contained(task, resolved)
     assert written["planner"]["algorithm"] == "trrt"
     resolve_task(TaskSpec.model_validate(written))

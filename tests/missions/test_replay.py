@@ -118,13 +118,8 @@ def rescue(tmp_path_factory: pytest.TempPathFactory) -> Exported:
 
 @pytest.fixture(scope="module")
 def puzzle(tmp_path_factory: pytest.TempPathFactory) -> Exported:
-    # seed 2: T-RRT solved it in 2.3 s in the 100-seed Table I run (BENCHMARKS.md). T-RRT's
-    # path: bitrrt's seed-2 path ends with a leg that mostly reshapes the formation, which
-    # drone 1 flies below ArduCopter's 20 cm/s floor and so early (summary.json early_legs;
-    # README, "Known limitations").
-    task = TaskSpec(
-        scene="puzzle", planner=PlannerOptions(algorithm="trrt", seed=2, time_budget=60)
-    )
+    # seed 2: T-RRT solved it in 2.3 s in the 100-seed Table I run (BENCHMARKS.md)
+    task = TaskSpec(scene="puzzle", planner=PlannerOptions(seed=2, time_budget=60))
     return export(task, tmp_path_factory)
 
 

@@ -143,9 +143,10 @@ def test_mesh_scenes_are_refused_naming_the_alternative():
     assert meshed.validity.has_meshes
     with pytest.raises(MeshScene, match="trrt"):
         BiTRRT(meshed.space, meshed.validity)
-    # Left to the default, such a scene is planned by T-RRT, which checks meshes with fcl.
+    with pytest.raises(MeshScene):
+        make_planner(meshed.space, meshed.validity, PlannerOptions(algorithm="bitrrt"))
+    # The default, T-RRT, checks meshes with fcl.
     assert make_planner(meshed.space, meshed.validity, PlannerOptions()).name == "trrt"
-    assert make_planner(problem.space, problem.validity, PlannerOptions()).name == "bitrrt"
 
 
 def test_the_kernels_parameter_indices_follow_the_params_fields():

@@ -39,7 +39,7 @@ def puzzle() -> PlanningProblem:
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_bitrrt_paths_gain_thrust_margin_and_keep_every_other_bound(puzzle, seed):
-    options = PlannerOptions(seed=seed, polish=False, time_budget=300)
+    options = PlannerOptions(algorithm="bitrrt", seed=seed, time_budget=300)
     path = plan(puzzle.space, puzzle.validity, puzzle.start, puzzle.goal, options).path
     polished = polish_formation(path, puzzle.space, puzzle.validity, puzzle.system, PolishConfig())
 
@@ -88,8 +88,8 @@ def test_polish_reaches_the_best_formation_of_a_brute_force_grid():
 
 
 def test_the_polish_is_asked_for(puzzle):
-    assert not PlannerOptions().polish  # README, Known limitations: not yet proven in flight
-    options = PlannerOptions(seed=0, time_budget=300)
+    assert not PlannerOptions().polish  # README, Known limitations: its flights
+    options = PlannerOptions(algorithm="bitrrt", seed=0, time_budget=300)
     unpolished = plan(puzzle.space, puzzle.validity, puzzle.start, puzzle.goal, options)
     polished = plan(
         puzzle.space,

@@ -86,12 +86,12 @@ def test_a_release_beyond_the_tolerance_is_reported_unsafe_and_its_spread_measur
 def test_a_set_down_load_may_rest_on_its_surfaces_through_the_final_hold(
     tmp_path_factory, tmp_path
 ):
-    """The Rescue's path with its formation polished (seed 0): in the hold after the
+    """bitrrt's Rescue path with its formation polished (seed 0): in the hold after the
     set-down leg, the mocks' positions put the footbridge 0.054 m into the west roof, and
     a report whose contact window closed with the leg called the flight unsafe. The
     load is meant to stay down: contact with the set-down's surfaces is allowed to the end,
     and nothing else is."""
-    task = TaskSpec(planner=PlannerOptions(seed=0, time_budget=60, polish=True))
+    task = TaskSpec(planner=PlannerOptions(algorithm="bitrrt", seed=0, time_budget=60, polish=True))
     exported = export(task, tmp_path_factory)
     report = report_of(exported, tmp_path, [0.0, 0.0, 0.0])
     assert report["verdict"]["safe"], report["verdict"]["reasons"]

@@ -44,10 +44,10 @@ pytestmark = [
 FLIGHT_TIMEOUT_S = 600
 
 
-def plan(scene: str, seed: int, out: Path, algorithm: str = "bitrrt") -> Path:
+def plan(scene: str, seed: int, out: Path) -> Path:
     task = TaskSpec(
         scene=scene,
-        planner=PlannerOptions(algorithm=algorithm, seed=seed, time_budget=120),
+        planner=PlannerOptions(seed=seed, time_budget=120),
         mission=MissionOptions(position_error="sitl"),
     )
     outcome = run_task(task, out)
@@ -62,10 +62,7 @@ def rescue(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def puzzle(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    # T-RRT's path, the one issue 11's bounds were met on: bitrrt's seed-2 Puzzle path flew
-    # with a true inter-drone p95 of 0.084 m against the 0.08 m bound (README, "Known
-    # limitations": its formation repair reshapes the formation more along the path).
-    return plan("puzzle", 2, tmp_path_factory.mktemp("puzzle"), algorithm="trrt")
+    return plan("puzzle", 2, tmp_path_factory.mktemp("puzzle"))
 
 
 def fly(task_dir: Path, out: Path, *extra: str) -> dict:
