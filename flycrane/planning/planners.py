@@ -37,7 +37,7 @@ TRRT_ONLY = ("goal_bias", "goal_connection", "init_temperature", "refinement_rat
 
 class PlannerOptions(BaseModel):
     """Which planner, with which parameters (default: ``trrt``, the paper's T-RRT, whose
-    paths three ArduCopter SITL autopilots flew safely on every seed tried; ``bitrrt``
+    missions three ArduCopter SITL autopilots flew safely in all 19 flights tried; ``bitrrt``
     solves the users' scenes T-RRT does not, but its paths fly less accurately:
     BENCHMARKS.md "Planner v2")."""
 
