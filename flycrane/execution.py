@@ -111,8 +111,11 @@ def stop_executor(executor: Executor) -> None:
     """Stop an executor now: queued jobs are dropped and, for a local process pool, the
     running ones killed (``shutdown`` alone waits for them to finish, however long).
 
-    Uses ``terminate_workers`` where Python has it (3.14), else the pool's process table.
+    Uses ``terminate_workers`` where Python has it (3.14), else the pool's process table,
+    read before ``shutdown``, which drops it: read after, it was empty, and a server that
+    stopped left its running jobs alive to write into the rows its next start resumed.
     """
+    processes: dict[int, Any] = dict(getattr(executor, "_processes", None) or {})
     executor.shutdown(wait=False, cancel_futures=True)
     if not isinstance(executor, ProcessPoolExecutor):
         return
@@ -120,7 +123,6 @@ def stop_executor(executor: Executor) -> None:
     if terminate is not None:
         terminate()
         return
-    processes: dict[int, Any] = dict(getattr(executor, "_processes", None) or {})
     for process in processes.values():
         process.kill()
     for process in processes.values():

@@ -5,14 +5,16 @@ from __future__ import annotations
 
 import csv
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
 from flycrane.benchmark import run_benchmark
-from flycrane.execution import DaskExecutor, executor_for, local_executor
+from flycrane.execution import DaskExecutor, executor_for, local_executor, stop_executor
 
 #: Columns that depend on the seed only (times depend on the machine).
 SEEDED = ("scene", "planner", "seed", "status", "nodes", "attempts", "avg_cost", "max_cost")
@@ -69,3 +71,33 @@ def test_no_address_is_the_local_pool(address):
     with executor_for(address, 1) as executor:
         assert not isinstance(executor, DaskExecutor)
         assert executor.submit(os.getpid).result(timeout=60) != os.getpid()
+
+
+def _report_pid_then_sleep(seconds: float) -> None:
+    Path(os.environ["FLYCRANE_TEST_PID_FILE"]).write_text(str(os.getpid()))
+    time.sleep(seconds)
+
+
+def test_stopping_a_local_pool_kills_its_running_job(tmp_path, monkeypatch):
+    """A stopped server must leave no job running: one that lived on wrote into the rows
+    its next start resumed. The worker's pid is probed with the OS, not the pool."""
+    pid_file = tmp_path / "pid"
+    monkeypatch.setenv("FLYCRANE_TEST_PID_FILE", str(pid_file))
+    executor = local_executor(1)
+    future = executor.submit(_report_pid_then_sleep, 600.0)
+    deadline = time.monotonic() + 120
+    while not pid_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    pid = int(pid_file.read_text())
+    stop_executor(executor)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(pid, signal.SIGKILL)
+        pytest.fail(f"worker {pid} still running after stop_executor")
+    assert future.done()
