@@ -30,6 +30,7 @@ from flycrane.direct_kinematics import (
 )
 from flycrane.kinematics import as_configurations, matrix_from_tilt_torsion
 from flycrane.statics import SINGULARITY_THRESHOLD
+from flycrane.statics_kernel import back_substitute, eliminate
 
 _CABLE_DRONE = np.array(CABLE_DRONE, dtype=np.int64)
 
@@ -41,7 +42,7 @@ def _newton_row(drones, p, r, model, residual, max_iterations) -> None:
     points, cable_drone, lengths, tolerances = model
     length_tolerance, singularity_threshold = tolerances[0], tolerances[1]
     rows = np.empty((6, 6))  # J^T: row i is [u_i, (b_i - p) x u_i]
-    rhs = np.empty(6)
+    rhs = np.empty((6, 1))
     rotation = np.empty((3, 3))
     for _ in range(max_iterations):
         converged = True
@@ -64,42 +65,19 @@ def _newton_row(drones, p, r, model, residual, max_iterations) -> None:
             rows[i, 4] = arm2 * u0 - arm0 * u2
             rows[i, 5] = arm0 * u1 - arm1 * u0
             column_norms *= math.sqrt(1.0 + rows[i, 3] ** 2 + rows[i, 4] ** 2 + rows[i, 5] ** 2)
-            rhs[i] = residual[i]
+            rhs[i, 0] = residual[i]
         if converged:
             return
-        # Gaussian elimination with partial pivoting; det(J^T) = det(J) from the pivots.
-        det = 1.0
-        for col in range(6):
-            pivot = col
-            for i in range(col + 1, 6):
-                if abs(rows[i, col]) > abs(rows[pivot, col]):
-                    pivot = i
-            if pivot != col:
-                det = -det
-                for j in range(6):
-                    rows[col, j], rows[pivot, j] = rows[pivot, j], rows[col, j]
-                rhs[col], rhs[pivot] = rhs[pivot], rhs[col]
-            det *= rows[col, col]
-            if rows[col, col] == 0.0:
-                break
-            for i in range(col + 1, 6):
-                factor = rows[i, col] / rows[col, col]
-                for j in range(col, 6):
-                    rows[i, j] -= factor * rows[col, j]
-                rhs[i] -= factor * rhs[col]
+        det = eliminate(rows, rhs)  # det(J^T) = det(J)
         # A singular J keeps the pose, as in the reference: the residual reports it.
         if abs(det) <= singularity_threshold * column_norms:
             return
-        for i in range(5, -1, -1):
-            acc = rhs[i]
-            for j in range(i + 1, 6):
-                acc -= rows[i, j] * rhs[j]
-            rhs[i] = acc / rows[i, i]
-        p[0] += rhs[0]
-        p[1] += rhs[1]
-        p[2] += rhs[2]
+        back_substitute(rows, rhs)
+        p[0] += rhs[0, 0]
+        p[1] += rhs[1, 0]
+        p[2] += rhs[2, 0]
         # R = exp([w]) R by Rodrigues, with its series limit at w = 0 as in the reference.
-        w0, w1, w2 = rhs[3], rhs[4], rhs[5]
+        w0, w1, w2 = rhs[3, 0], rhs[4, 0], rhs[5, 0]
         angle = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
         a, b = 1.0, 0.5
         if angle > 1e-12:

@@ -32,6 +32,50 @@ _DRONE_CABLES = np.array(DRONE_CABLES, dtype=np.int64)
 STATICS_WORK = 9 + 9 + 18 + 36 + 42
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def eliminate(a, b) -> float:
+    """Gaussian elimination with partial pivoting of a x = b in place: a (6, 6) becomes
+    upper triangular, b (6, k) follows; returns det(a) from the pivots (0 at the first zero
+    pivot, where it stops). The statics' and the direct kinematics' 6 x 6 systems; the size
+    is a constant, not a.shape[0], so the compiler knows the loops' bounds (the cost kernel
+    ran 10 % slower with them read from the array)."""
+    n, k = 6, b.shape[1]
+    det = 1.0
+    for col in range(n):
+        pivot = col
+        for r in range(col + 1, n):
+            if abs(a[r, col]) > abs(a[pivot, col]):
+                pivot = r
+        if pivot != col:
+            det = -det
+            for c in range(n):
+                a[col, c], a[pivot, c] = a[pivot, c], a[col, c]
+            for c in range(k):
+                b[col, c], b[pivot, c] = b[pivot, c], b[col, c]
+        det *= a[col, col]
+        if a[col, col] == 0.0:
+            return 0.0
+        for r in range(col + 1, n):
+            factor = a[r, col] / a[col, col]
+            for c in range(col, n):
+                a[r, c] -= factor * a[col, c]
+            for c in range(k):
+                b[r, c] -= factor * b[col, c]
+    return det
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def back_substitute(a, b) -> None:
+    """x of the triangular system :func:`eliminate` left, written over b (6, k)."""
+    n, k = 6, b.shape[1]
+    for r in range(n - 1, -1, -1):
+        for c in range(k):
+            acc = b[r, c]
+            for j in range(r + 1, n):
+                acc -= a[r, j] * b[j, c]
+            b[r, c] = acc / a[r, r]
+
+
 @numba.njit(cache=True, nogil=True)
 def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
     """Statics of one configuration q (9,): f0 (6,), v (6,), m (3,) into the outputs; returns
@@ -106,28 +150,7 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
     for a in range(6):
         for b in range(6):
             rhs[a, b + 1] = lsqrt[a, b]
-    # Gaussian elimination with partial pivoting; det from the pivots.
-    det = 1.0
-    for col in range(6):
-        pivot = col
-        for r in range(col + 1, 6):
-            if abs(jac[r, col]) > abs(jac[pivot, col]):
-                pivot = r
-        if pivot != col:
-            det = -det
-            for b in range(6):
-                jac[col, b], jac[pivot, b] = jac[pivot, b], jac[col, b]
-            for b in range(7):
-                rhs[col, b], rhs[pivot, b] = rhs[pivot, b], rhs[col, b]
-        det *= jac[col, col]
-        if jac[col, col] == 0.0:
-            break
-        for r in range(col + 1, 6):
-            factor = jac[r, col] / jac[col, col]
-            for b in range(col, 6):
-                jac[r, b] -= factor * jac[col, b]
-            for b in range(7):
-                rhs[r, b] -= factor * rhs[col, b]
+    det = eliminate(jac, rhs)
     if abs(det) <= threshold * column_norms:
         for i in range(6):
             f0_out[i] = math.inf
@@ -135,12 +158,7 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
         for k in range(3):
             m_out[k] = math.inf
         return math.inf
-    for r in range(5, -1, -1):
-        for b in range(7):
-            acc = rhs[r, b]
-            for c in range(r + 1, 6):
-                acc -= jac[r, c] * rhs[c, b]
-            rhs[r, b] = acc / jac[r, r]
+    back_substitute(jac, rhs)
     log_cost = 0.0
     feasible = True
     for i in range(6):
