@@ -8,7 +8,8 @@ seq   command                   meaning
 ====  ========================  ============================================================
 0     NAV_WAYPOINT (home)       ArduPilot's home slot: the ground (z = 0) below the drone's
                                 start, altitude AMSL; overwritten at arming with the real
-                                home
+                                home, where the drone stands: ``home_height`` above the
+                                ground, which relative altitudes count from
 1     NAV_TAKEOFF               climb vertically to the start altitude
 2     NAV_LOITER_UNLIM          **hold at the start until released**: the ground station
                                 sends MISSION_SET_CURRENT with seq 3 to all three drones
@@ -64,8 +65,7 @@ def _enu_item(
     command: MavCmd, enu: NDArray[np.float64], options: MissionOptions, frame: MavFrame
 ) -> MissionItem:
     lat, lon, amsl = geodetic_from_enu(enu, options.origin)
-    relative = options.altitude_frame == "relative"
-    z = mission_altitude(enu[2] if relative else amsl)
+    z = mission_altitude(options.item_altitude(enu[2], amsl))
     return _position_item(command, float(lat), float(lon), float(z), frame)
 
 
@@ -93,7 +93,7 @@ def build_missions(plan: FlightPlan, options: MissionOptions) -> list[DroneMissi
     relative = options.altitude_frame == "relative"
     frame = MavFrame.GLOBAL_RELATIVE_ALT_INT if relative else MavFrame.GLOBAL_INT
     lat, lon, amsl = geodetic_from_enu(plan.drones, origin)  # (K, 3) each
-    height = mission_altitude(plan.drones[..., 2] if relative else amsl)
+    height = mission_altitude(options.item_altitude(plan.drones[..., 2], amsl))
     start = plan.drones[0]
     ground = np.concatenate([start[:, :2], np.zeros((3, 1))], axis=1)
     home_lat, home_lon, home_amsl = geodetic_from_enu(ground, origin)

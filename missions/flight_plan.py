@@ -117,13 +117,11 @@ def stored_positions(enu: NDArray[np.float64], options: MissionOptions) -> NDArr
     direction, by tens of percent in that direction's limit."""
     origin = options.origin
     lat, lon, amsl = geodetic_from_enu(enu, origin)
-    relative = options.altitude_frame == "relative"
-    height = np.asarray(enu, dtype=float)[..., 2] if relative else amsl
-    stored = ardupilot_altitude(height)
+    stored = ardupilot_altitude(options.item_altitude(np.asarray(enu, dtype=float)[..., 2], amsl))
     return enu_from_geodetic(
         degrees_to_int(lat) * DEGREE_UNIT,
         degrees_to_int(lon) * DEGREE_UNIT,
-        stored + origin.altitude if relative else stored,
+        options.item_amsl(stored),
         origin,
     )
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 from datetime import UTC, datetime
 from typing import Literal
 
+import numpy as np
+from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from missions.position_error import PositionErrorModel
@@ -94,6 +96,30 @@ class MissionOptions(BaseModel):
     )
     end: Literal["hold", "land"] = Field("hold", description="after the last waypoint")
     altitude_frame: Literal["relative", "amsl"] = "relative"
+    home_height: float = Field(
+        0.1,
+        ge=0.0,
+        le=2.0,
+        strict=True,
+        description="[m] height above the ground of each drone's position reference (its "
+        "autopilot's) while it stands at its start: ArduPilot sets home there at arming, and "
+        "relative altitudes count from it. ArduCopter SITL's quad stands 0.10 m high; "
+        "measure yours as the altitude a drone on the ground reads above it",
+    )
+
+    def item_altitude(
+        self, z: NDArray[np.float64], amsl: NDArray[np.float64]
+    ) -> NDArray[np.float64]:
+        """A position item's altitude [m] for ENU height ``z`` (AMSL ``amsl``): above home,
+        which stands :attr:`home_height` above the ground, or AMSL."""
+        return z - self.home_height if self.altitude_frame == "relative" else amsl
+
+    def item_amsl(self, altitude: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The AMSL altitude [m] of an item's ``altitude`` (:meth:`item_altitude`'s
+        inverse)."""
+        if self.altitude_frame == "relative":
+            return altitude + self.origin.altitude + self.home_height
+        return altitude
 
     @field_validator("start_time_utc")
     @classmethod

@@ -27,11 +27,15 @@ that tolerance (p95) are a *warning*, not a verdict: progress is the nearest poi
 drone's own path, so it mixes timing with the drone's distance from that path and grows
 as speed falls (a Puzzle flight on SITL showed 0.28 s of progress spread where the three
 drones' distances were within 3.4 cm of the plan's, p95); the load's own geometry is the
-evidence that counts.
+evidence that counts. So is a formation that sat at rest, on median, further from the plan
+than the position-error model's common bounds allow: the clearance the plan kept rests on them,
+and a steady offset of all three drones is a frame error (a wrong home height put every
+drone of every SITL flight about 9 cm above the plan) or a steady push.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
@@ -46,6 +50,7 @@ from missions.flight_report.alignment import Releases
 from missions.flight_report.log import Track, VehicleLog
 from missions.flight_report.plan import PROGRESS_STEP_S, PlannedFlight
 from missions.motion import forward_progress
+from missions.position_error import position_error_model
 
 #: Reconstructions per second of mission time (the issue asks for >= 5 Hz).
 REPORT_RATE_HZ = 10.0
@@ -57,6 +62,8 @@ ARRIVAL_TOLERANCE_M = 0.02
 #: dominated by the position estimate's noise (2 cm at 10 cm/s is 0.2 s: a set-down's
 #: last centimetres showed 0.5 s of spread in SITL while the drones were in step).
 MOVING_SPEED = 0.2
+#: The model has the drones at rest below this speed [m/s] (:func:`_common_offset_at_rest`).
+REST_SPEED = 0.02
 #: After the last arrival, this much of the hold is judged too [s].
 END_MARGIN_S = 1.0
 
@@ -74,6 +81,12 @@ class SourceFigures:
     error_off_path_max: tuple[float, float, float]
     inter_drone_error_p95: float
     inter_drone_error_max: float
+    #: where the whole formation sat against the plan while the model has it at rest (the
+    #: hold at the release, stops, the final hold): the median of the three drones' mean
+    #: displacement, ENU, over those samples (NaN without any). A frame error common to the
+    #: drones (home altitude, origin) shows here, and the load moves with it; in motion the
+    #: drones' lag along the path would mix in (a 0.5 m/s climb lags 0.1 m on SITL)
+    common_offset_at_rest: tuple[float, float, float]
     converged: bool  #: every reconstruction converged
     feasible: bool  #: every reconstruction wrench- and thrust-feasible
     collision_free: bool  #: against the real obstacles
@@ -203,6 +216,19 @@ def _per_drone(values: NDArray[np.float64]) -> tuple[float, float, float]:
     return (float(values[0]), float(values[1]), float(values[2]))
 
 
+def _common_offset_at_rest(
+    plan: PlannedFlight, t: NDArray[np.float64], displacement: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """:attr:`SourceFigures.common_offset_at_rest` of displacements (N, 3 drones, 3)."""
+    if len(t) < 2:
+        return np.full(3, np.nan)
+    speed = np.linalg.norm(np.gradient(plan.drones_at(t), t, axis=0), axis=-1).max(axis=1)
+    at_rest = speed < REST_SPEED
+    if not at_rest.any():
+        return np.full(3, np.nan)
+    return np.median(displacement[at_rest].mean(axis=1), axis=0)
+
+
 def _source_figures(
     source: str,
     plan: PlannedFlight,
@@ -214,7 +240,8 @@ def _source_figures(
     system = problem.system
     plan_t, plan_drones = plan.progress_samples()
     flown = _flown(tracks, releases, t)
-    in_time = np.linalg.norm(flown - plan.drones_at(t), axis=-1)  # (N, 3)
+    displacement = flown - plan.drones_at(t)  # (N, 3 drones, 3)
+    in_time = np.linalg.norm(displacement, axis=-1)  # (N, 3)
     off_path = np.stack(
         [
             np.linalg.norm(
@@ -263,6 +290,7 @@ def _source_figures(
         error_off_path_max=_per_drone(off_path.max(axis=0)),
         inter_drone_error_p95=_p95(inter),
         inter_drone_error_max=float(inter.max()),
+        common_offset_at_rest=_per_drone(_common_offset_at_rest(plan, t, displacement)),
         converged=bool(rebuilt.converged.all()),
         feasible=bool(feasible.all()),
         collision_free=bool(free[feasible].all()),
@@ -317,6 +345,15 @@ def flight_report(
         )
     reasons += [f"parameter: {p}" for p in parameter_differences]
     warnings = []
+    model = position_error_model(plan.resolved.task.mission.position_error)
+    east, north, up = judged.common_offset_at_rest
+    if math.hypot(east, north) > model.common_horizontal or abs(up) > model.common_vertical:
+        warnings.append(
+            f"at rest the formation sat ({east:+.3f}, {north:+.3f}, {up:+.3f}) m (east, "
+            f"north, up; median) from the plan, beyond the position-error model's common "
+            f"{model.common_horizontal:.3f} m horizontally and {model.common_vertical:.3f} m "
+            "vertically: a frame error (home height, origin) or a steady push moves the load"
+        )
     if timing.progress_spread_p95 > tolerance:
         warnings.append(
             f"drones {timing.progress_spread_p95:.3f} s apart in progress (p95), beyond the "

@@ -44,9 +44,19 @@ class Dynamics:
     descent_speed_mps: float = 1.5
     land_speed_mps: float = 0.5
     min_ground_speed_mps: float = 0.2  #: smaller DO_CHANGE_SPEED ground speeds are ignored
+    #: how high its position reference stands above the ground it rests on [m], where
+    #: arming sets home: ArduCopter SITL's quad (its frame height; on SITL, SIM_STATE reads
+    #: 488.10 m on the ground of a vehicle started with --home at 488.0 m)
+    rest_height_m: float = 0.1
 
     def __post_init__(self) -> None:
-        _positive("Dynamics", **{k: getattr(self, k) for k in self.__dataclass_fields__})
+        speeds = {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "rest_height_m"}
+        _positive("Dynamics", **speeds)
+        if not self.rest_height_m >= 0:
+            raise InputError(
+                [FieldProblem("rest_height_m", f"must be >= 0, got {self.rest_height_m}")],
+                source="Dynamics",
+            )
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,8 @@ enough to check timing and geometry of multi-drone missions.
   ``epoch_utc`` plus simulated time (plus a per-vehicle offset, to imitate vehicles whose
   clocks disagree, design.md section 9).
 - **Space.** Positions are local ENU metres about a fixed origin (the configured start
-  position); geodetic <-> ENU goes through pymap3d.
+  position, on the ground); the vehicle stands :attr:`Dynamics.rest_height_m` above it, as
+  SITL's does, and arming makes that home. Geodetic <-> ENU goes through pymap3d.
 - **Commands.** Altitudes are flown as ArduPilot stores them, in whole centimetres
   (:func:`~missions.geodesy.ardupilot_altitude`). NAV_TAKEOFF climbs vertically to the item
   altitude. NAV_SPLINE_WAYPOINT legs are flown as ArduCopter 4.5 flies them
@@ -171,7 +172,8 @@ class KinematicFlight:
         self.epoch_utc = epoch_utc
         self.dynamics = dynamics
         self.imperfections = imperfections
-        self.position = np.zeros(3)  #: ENU [m]
+        #: ENU [m]: standing on the ground below the origin
+        self.position = np.array([0.0, 0.0, dynamics.rest_height_m])
         self.velocity = np.zeros(3)  #: ENU [m/s]
         self.landed_disarm = False  #: set when NAV_LAND touched down (the autopilot disarms)
         self.finished = False
@@ -193,7 +195,7 @@ class KinematicFlight:
 
     @property
     def on_ground(self) -> bool:
-        return self.position[2] <= GROUND_CLEARANCE_M
+        return self.position[2] <= self.dynamics.rest_height_m + GROUND_CLEARANCE_M
 
     def start(
         self,
@@ -466,7 +468,7 @@ class KinematicFlight:
             above = self.enu_from_item(item, home_alt)
             above[2] = self.position[2]
             carry = yield from self._fly(above, self._leg_speed(above), 0.0, carry)
-        ground = np.array([*self.position[:2], 0.0])
+        ground = np.array([*self.position[:2], self.dynamics.rest_height_m])
         carry = yield from self._fly(ground, self.dynamics.land_speed_mps, 0.0, carry)
         self.landed_disarm = True
         return carry

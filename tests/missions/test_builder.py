@@ -78,7 +78,8 @@ def test_positions_are_the_plans_stored_waypoints(curved_flight, missions):
         for item, enu in zip(located, points, strict=True):
             lat, lon = approximate_geodetic(enu, OPTIONS.origin)
             assert abs(item.x - lat * 1e7) <= 0.51 and abs(item.y - lon * 1e7) <= 0.51
-            assert stored_centimetres(item.z) == round(enu[2] * 100)  # what the plan flies
+            # what the plan flies, above home: where the drone stood, home_height up
+            assert stored_centimetres(item.z) == round((enu[2] - OPTIONS.home_height) * 100)
             assert item.frame == MavFrame.GLOBAL_RELATIVE_ALT_INT
 
 

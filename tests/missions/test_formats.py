@@ -96,9 +96,10 @@ def test_golden_waypoints_file_says_what_the_plan_says(drone):
         assert float(row[9]) == pytest.approx(lo, abs=0.51e-7)
         if row is rows[0]:
             assert float(row[10]) == pytest.approx(OPTIONS.origin.altitude, abs=1e-6)
-        else:  # the centimetre ArduPilot stores it as (int32 of float32 z times 100)
+        else:  # the centimetre ArduPilot stores it as (int32 of float32 z times 100),
+            # above home: where the drone stood, home_height above the ground
             stored = int(np.float32(float(row[10])) * np.float32(100.0))
-            assert stored == round(point[2] * 100)
+            assert stored == round((point[2] - OPTIONS.home_height) * 100)
 
 
 def test_golden_plan_file_says_what_the_plan_says():

@@ -105,7 +105,8 @@ def test_rescue_missions_hold_above_the_start_and_set_the_bridge_down_on_the_roo
         for item, enu in ((hold, ends[0][j - 1]), (last, ends[1][j - 1])):
             lat, lon = approximate_geodetic(enu, origin)
             assert abs(item.x - lat * 1e7) <= 0.51 and abs(item.y - lon * 1e7) <= 0.51
-            assert item.z == pytest.approx(enu[2], abs=0.01)  # stored in whole centimetres
+            # stored in whole centimetres, above home: where the drone stood
+            assert item.z + MissionOptions().home_height == pytest.approx(enu[2], abs=0.01)
 
 
 def test_rescue_speed_items_are_the_limits_the_plan_solved(rescue):

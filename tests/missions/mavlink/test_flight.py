@@ -273,7 +273,9 @@ def test_nav_delay_utc_time_of_day(hms, expected):
 
 def test_arming_makes_the_current_position_the_home(spawn_mock, fast_policy):
     """Fly 10 m north and land there (the mock disarms on touchdown); arming again moves
-    home, and seq 0 reads back as the new home."""
+    home, and seq 0 reads back as the new home: where the vehicle stands, its rest height
+    above the ground (SITL, started with --home at 488.0 m, read back a home of 488.06 m,
+    its estimate of SIM_STATE's 488.10 m)."""
     mock, address = spawn_mock(MockConfig(home=HOME), SimClock(SPEEDUP))
     mission = DroneMission(
         1,
@@ -298,7 +300,7 @@ def test_arming_makes_the_current_position_the_home(spawn_mock, fast_policy):
     east, north, up = pymap3d.geodetic2enu(
         home.x * 1e-7, home.y * 1e-7, home.z, HOME.lat_deg, HOME.lon_deg, HOME.alt_m
     )
-    assert (east, north, up) == pytest.approx((0.0, 10.0, 0.0), abs=0.02)
+    assert (east, north, up) == pytest.approx((0.0, 10.0, 0.1), abs=0.02)
     assert (home.frame, home.command) == (MavFrame.GLOBAL, MavCmd.NAV_WAYPOINT)
     assert mock.home.lat_deg == pytest.approx(home.x * 1e-7, abs=1e-7)
 

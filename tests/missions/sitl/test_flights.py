@@ -25,6 +25,7 @@ import pytest
 from flycrane.planning.planners import PlannerOptions
 from missions.options import MissionOptions
 from missions.pipeline import run_task
+from missions.position_error import PRESETS
 from missions.sitl.netns import namespaces_available
 from missions.sitl.process import alive
 from missions.sitl.settings import SitlSettings
@@ -86,6 +87,10 @@ def assert_in_step_and_safe(report: dict) -> None:
     assert abs(flown / planned - 1.0) <= 0.15, (flown, planned)
     assert report["release_spread"] <= 0.05
     assert true["inter_drone_error_p95"] <= 0.08
+    # the formation at the planned height: relative altitudes count from where each drone
+    # stood, 0.10 m above the ground on SITL (home_height); counted from the ground, every
+    # drone of every flight flew about 0.09 m high
+    assert abs(true["common_offset_at_rest"][2]) <= PRESETS["sitl"].common_vertical
     assert report["verdict"]["safe"], report["verdict"]["reasons"]
 
 
