@@ -14,7 +14,8 @@ missions"), with the simulator's own additions marked:
    (the upload reports every one that differs, ``parameter_differences``);
 5. arm and start all three (MISSION_START): they take off and hold at their start in
    NAV_LOITER_UNLIM;
-6. once all three hover steadily at the hold, release them together: MISSION_SET_CURRENT
+6. once all three hover steadily at the hold (slow, and each estimate within
+   ``settle_distance`` of its hold), release them together: MISSION_SET_CURRENT
    to the first timed item, sent back to back (:func:`missions.mavlink.commands.release`);
 7. record until every drone holds at its end, then stop.
 
@@ -35,6 +36,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -42,12 +44,14 @@ from pathlib import Path
 from typing import Any
 
 from missions.formats import mission_from_json
-from missions.items import DroneMission, MavCmd
+from missions.geodesy import DEGREE_UNIT, ardupilot_altitude, enu_from_geodetic
+from missions.items import DroneMission, MavCmd, MissionItem
 from missions.mavlink.commands import ReleaseReport, release, set_message_interval
 from missions.mavlink.fleet import Fleet, on_every_vehicle
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.tlog import StretchedClock, TlogWriter
 from missions.mavlink.transport import VehicleLink
+from missions.options import GeodeticOrigin
 from missions.parameter_file import read_parameter_file
 from missions.sitl.errors import SitlError
 from missions.sitl.process import SitlGroup, SitlHome
@@ -73,6 +77,11 @@ class SitlFlightOptions:
     stream_hz: float = 50.0
     settle_s: float = 3.0  #: steady hover at the hold before the release
     settle_speed: float = 0.05  #: [m/s] "steady": every drone slower than this
+    #: [m] "steady": and every drone's estimate this close to its hold. Slow alone is not
+    #: steady: after the take-off's 2.5 m/s climb ArduCopter closes the last centimetres of
+    #: height at about 0.5 cm/s, and drones released 3 s after they slowed started the
+    #: mission 2-5 cm below it (true positions, 2026-11-25)
+    settle_distance: float = 0.02
     end_margin_s: float = 3.0  #: recorded after the last drone reached its end
     #: extra delay of each drone's release [s]: a deliberately perturbed flight
     release_delays: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -244,13 +253,32 @@ def _release(
 
 
 class _Progress:
-    """The latest MISSION_CURRENT, speed and time of every vehicle (reader threads)."""
+    """The latest MISSION_CURRENT and time of every vehicle, and since when it has been
+    steady at its hold: slower than ``settle_speed`` [m/s] and its estimate within
+    ``settle_distance`` [m] of ``holds`` (reader threads)."""
 
-    def __init__(self, links: Sequence[VehicleLink]) -> None:
+    def __init__(
+        self,
+        links: Sequence[VehicleLink],
+        holds: Sequence[MissionItem],
+        settle_speed: float,
+        settle_distance: float,
+    ) -> None:
         self.current = {link.name: -1 for link in links}
         self.slow_since: dict[str, float | None] = {link.name: None for link in links}
         self.boot_s = {link.name: 0.0 for link in links}
-        self.settle_speed = 0.0
+        self.settle_speed = settle_speed
+        self.settle_distance = settle_distance
+        # each hold where ArduPilot flies it: its latitude and longitude, and its altitude
+        # above home in whole centimetres (relative_alt is above home too)
+        self._holds = {
+            link.name: GeodeticOrigin(
+                latitude=hold.x * DEGREE_UNIT,
+                longitude=hold.y * DEGREE_UNIT,
+                altitude=float(ardupilot_altitude(hold.z)),
+            )
+            for link, hold in zip(links, holds, strict=True)
+        }
         self._links = links
         for link in links:
             link.add_listener(("MISSION_CURRENT", "GLOBAL_POSITION_INT"), self._listener(link.name))
@@ -265,7 +293,11 @@ class _Progress:
             now = msg.time_boot_ms / 1000.0
             self.boot_s[name] = now
             speed = (msg.vx**2 + msg.vy**2 + msg.vz**2) ** 0.5 / 100.0
-            if speed > self.settle_speed:
+            offset = enu_from_geodetic(
+                msg.lat * DEGREE_UNIT, msg.lon * DEGREE_UNIT, msg.relative_alt / 1000.0,
+                self._holds[name],
+            )  # fmt: skip
+            if speed > self.settle_speed or math.hypot(*offset) > self.settle_distance:
                 self.slow_since[name] = None
             elif self.slow_since[name] is None:
                 self.slow_since[name] = now
@@ -360,8 +392,8 @@ def _fly(
     # the upload reads the plan's parameters back, as it does for a ground station's user
     uploads = fleet.upload(plan.missions, parameters=plan.parameters)
     differences = tuple(str(error) for upload in uploads for error in upload.parameter_errors)
-    progress = _Progress(links)
-    progress.settle_speed = options.settle_speed
+    holds = [m.items[plan.hold_seq] for m in plan.missions]
+    progress = _Progress(links, holds, options.settle_speed, options.settle_distance)
     rates = _RateMeter(links)
     fleet.arm()
     fleet.start()

@@ -79,15 +79,20 @@ SITL_BARO_GROUND_TEMPERATURE = 15.0
 
 def defaults_file(settings: SitlSettings, directory: Path) -> Path:
     """The defaults SITL boots with: the configured file, plus calibrated barometers
-    (:attr:`SitlSettings.calibrated_barometers`). A defaults file is read before the
-    barometers are calibrated: the only time BARO_GND_TEMP may change (set on a running
-    vehicle, it moved the altitude estimate by 27 m)."""
-    if not settings.calibrated_barometers:
+    (:attr:`SitlSettings.calibrated_barometers`) and no artificial gyro drift
+    (:attr:`SitlSettings.gyro_drift`). A defaults file is read before the barometers are
+    calibrated: the only time BARO_GND_TEMP may change (set on a running vehicle, it moved
+    the altitude estimate by 27 m)."""
+    extra = []
+    if settings.calibrated_barometers:
+        extra.append(f"BARO_GND_TEMP {SITL_BARO_GROUND_TEMPERATURE}")
+    if not settings.gyro_drift:
+        extra.append("SIM_DRIFT_SPEED 0")
+    if not extra:
         return settings.defaults_file
     path = directory / "defaults.parm"
     base = settings.defaults_file.read_text(encoding="utf-8")
-    extra = f"BARO_GND_TEMP {SITL_BARO_GROUND_TEMPERATURE}"
-    path.write_text(f"{base.rstrip()}\n{extra}\n", encoding="utf-8")
+    path.write_text("\n".join([base.rstrip(), *extra]) + "\n", encoding="utf-8")
     return path
 
 

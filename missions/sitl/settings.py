@@ -50,6 +50,14 @@ class SitlSettings(BaseSettings):
         "reads heights 4.6-7 % high and differently on each drone",
     )
 
+    gyro_drift: bool = Field(
+        False,
+        description="keep SITL's artificial gyro drift (SIM_DRIFT_SPEED 0.05 deg/s per minute "
+        "since boot, a 10-minute triangle): the EKF's attitude lags the ramp by 0.1-0.2 deg, "
+        "and every drone then holds 2-5 cm north-west of its target (south-east after 5 "
+        "minutes), all alike; a real gyro's bias settles after warm-up and the EKF follows it",
+    )
+
     @property
     def defaults_file(self) -> Path:
         return self.defaults or self.binary.parent / "copter.parm"
