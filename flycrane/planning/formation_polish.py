@@ -33,8 +33,9 @@ minimum, which its neighbours hold, but it raises the soft one, and the next pas
 neighbours. All margins are measured on the path discretized at the metrics resolution.
 
 The polish is asked for (``PlannerOptions.polish``), not the default: the formation it
-reshapes in a narrow passage is flown less accurately, and on three SITL autopilots a
-polished Puzzle path put the long bar into the slab (BENCHMARKS.md, "Formation polish").
+reshapes in a narrow passage is flown less accurately; on three SITL autopilots 1-2 of 13
+polished Puzzle missions per run put the long bar into the slab where none of the
+unpolished ones did (BENCHMARKS.md, "Formation polish" and "Home height").
 """
 
 from __future__ import annotations
