@@ -48,7 +48,7 @@ from missions.geodesy import (
 from missions.motion import DroneMotion, formation_progress
 from missions.options import MissionOptions
 from missions.tracks import Track, rotation_angles
-from missions.vertical_legs import VerticalLeg
+from missions.vertical_legs import RAISE_STEP, VerticalLeg
 from missions.waypoints import LegCheck, Validity, check_flight, reduce_to_waypoints
 
 #: Most splits of legs whose modelled flight failed its check, before giving up.
@@ -99,14 +99,22 @@ class FlightPlan:
 
     def retimed(self, track: Track) -> Track:
         """The dense plan on mission time (the inverse of :meth:`progress_time`), with the
-        set-down's descent to the goal at its end if there is one."""
+        set-down's descent to the goal at its end if there is one, sampled every
+        :data:`~missions.vertical_legs.RAISE_STEP` as the descent was checked."""
         mission = np.interp(track.time, self.track_time, self.time[: len(self.track_time)])
         if self.set_down is None:
             return Track(mission, track.q, track.drones)
+        steps = max(1, int(np.ceil(self.set_down.leg.height / RAISE_STEP - 1e-9)))
+        f = np.linspace(0.0, 1.0, steps + 1)[1:]
         return Track(
-            np.append(mission, self.time[-1]),
-            np.concatenate([track.q, self.q[-1:]]),
-            np.concatenate([track.drones, self.drones[-1:]]),
+            np.append(mission, mission[-1] + f * (self.time[-1] - mission[-1])),
+            np.concatenate([track.q, track.q[-1] + f[:, None] * (self.q[-1] - track.q[-1])]),
+            np.concatenate(
+                [
+                    track.drones,
+                    track.drones[-1] + f[:, None, None] * (self.drones[-1] - track.drones[-1]),
+                ]
+            ),
         )
 
 

@@ -94,6 +94,15 @@ class MissionOptions(BaseModel):
     vertical_leg_speed: float = Field(
         0.1, ge=0.01, le=0.5, strict=True, description="[m/s] of lift-off and set-down legs"
     )
+    set_down_approach: float = Field(
+        0.1,
+        ge=0.0,
+        le=1.0,
+        strict=True,
+        description="[m] a set-down's slow vertical leg starts this much above the lowest "
+        "pose that keeps the clearance, so that the path's last leg brakes there and not at "
+        "the clearance's edge (missions.vertical_legs)",
+    )
     end: Literal["hold", "land"] = Field("hold", description="after the last waypoint")
     altitude_frame: Literal["relative", "amsl"] = "relative"
     home_height: float = Field(

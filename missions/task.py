@@ -195,7 +195,8 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
             )
         else:
             q = np.array(default if given is None else given, dtype=float)
-        planned, leg = clear_end(q, problem.validity, what)
+        approach = task.mission.set_down_approach if what == "goal" else 0.0
+        planned, leg = clear_end(q, problem.validity, what, approach)
         ends.append(planned)
         legs.append(leg)
     return ResolvedTask(task, problem, ends[0], ends[1], lift_off=legs[0], set_down=legs[1])

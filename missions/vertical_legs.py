@@ -5,7 +5,12 @@ the ground) is planned from or to the nearest raised pose that keeps the clearan
 - **Set-down**: the mission's last leg descends slowly from the raised goal to the goal
   (a spline leg timed at ``vertical_leg_speed``, the same on all three drones, ending at
   rest in the final hold). Contact with the named surfaces during it is its intended end
-  (the load rests on the roof), not a failure; contact with anything else is.
+  (the load rests on the roof), not a failure; contact with anything else is. The raised
+  goal is ``set_down_approach`` above the lowest clear pose: the path's last leg brakes
+  there, and braking is where the drones err most (on SITL, three drones braking a
+  0.3 m/s descent onto the Rescue's roofs sank 3-4 cm below their targets and spread by as
+  much, and the platform, hanging at alphas near 1, sank 10 cm: the footbridge hit a roof
+  where the plan kept 7 cm).
 - **Lift-off**: the take-off climbs to the raised start with the load hanging below: it is
   the take-off that lifts the load from its surfaces, before the drones are released
   together (design.md section 9: take-offs lift 0.27-0.41 s apart, so the lift happens
@@ -49,10 +54,11 @@ class VerticalLeg:
 
 
 def clear_end(
-    q: NDArray[np.float64], validity: ValidityChecker, what: str
+    q: NDArray[np.float64], validity: ValidityChecker, what: str, approach: float = 0.0
 ) -> tuple[NDArray[np.float64], VerticalLeg | None]:
     """The pose to plan from or to for a start or goal ``q``, and its vertical leg if it
-    needs one (module docstring).
+    needs one (module docstring): the lowest clear pose above ``q``, raised by up to
+    ``approach`` [m] more where that stays clear.
 
     Raises
     ------
@@ -68,11 +74,20 @@ def clear_end(
     if planning.out_of_bounds or planning.violations:
         raise InvalidConfigurationError(what, planning)
     surfaces = tuple(sorted({c.other for c in planning.contacts}))
-    for height in np.arange(RAISE_STEP, MAX_RAISE + RAISE_STEP / 2, RAISE_STEP):
-        high = q + np.array([0.0, 0.0, height, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-        if validity.is_valid(high)[0] and _touches_only(real, q, high, surfaces):
-            return high, VerticalLeg(np.asarray(q, dtype=float), high, surfaces)
-    raise InvalidConfigurationError(what, planning)
+    up = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+    def clear(height: float) -> bool:
+        high = q + height * up
+        return bool(validity.is_valid(high)[0]) and _touches_only(real, q, high, surfaces)
+
+    heights = np.arange(RAISE_STEP, MAX_RAISE + RAISE_STEP / 2, RAISE_STEP)
+    lowest = next((float(h) for h in heights if clear(h)), None)
+    if lowest is None:
+        raise InvalidConfigurationError(what, planning)
+    # the highest clear pose within the approach, looked for from the top
+    extras = np.arange(approach, RAISE_STEP / 2, -RAISE_STEP)
+    height = next((lowest + float(e) for e in extras if clear(lowest + e)), lowest)
+    return q + height * up, VerticalLeg(np.asarray(q, dtype=float), q + height * up, surfaces)
 
 
 def _touches_only(

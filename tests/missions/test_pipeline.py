@@ -94,6 +94,10 @@ def test_rescue_missions_hold_above_the_start_and_set_the_bridge_down_on_the_roo
     assert summary["obstacle_clearance"] == pytest.approx(0.08)
     assert summary["lift_off"]["surfaces"] == ["ground"]
     assert summary["set_down"]["surfaces"] == ["east building", "west building"]
+    # the set-down starts set_down_approach above the lowest clear pose: the bridge 5 cm
+    # above the roofs needs 3 cm more for 8 cm of clearance
+    approach = MissionOptions().set_down_approach
+    assert summary["set_down"]["height"] == pytest.approx(0.03 + approach, abs=0.011)
     lift = summary["lift_off"]["height"]
     raised = np.array(scene.start) + [0, 0, lift, 0, 0, 0, 0, 0, 0]
     ends = drone_positions_from_configuration(system, [raised, scene.goal])
