@@ -83,8 +83,13 @@ def fly(task_dir: Path, out: Path, *extra: str) -> dict:
 
 def assert_released_at_the_start(task_dir: Path, report: dict) -> None:
     """At the release every drone is where the plan starts it, within the `sitl` model's
-    common bounds (true positions): the harness releases once each estimate is within 2 cm
-    of its hold, not merely slow (released slow only, they started 2-5 cm low)."""
+    common bounds (true positions). Relative altitudes count from where each drone stood,
+    0.10 m above the ground on SITL (``home_height``): counted from the ground, every drone
+    flew about 0.09 m high. And the harness releases once each estimate is within 2 cm of
+    its hold, not merely slow: released slow only, they started 2-5 cm low. (The report's
+    ``common_offset_at_rest`` says the same, but its rest samples are mostly the final
+    hold's first second, where the drones still settle: the Rescue's read -0.020 to
+    -0.033 m.)"""
     start = PlannedFlight.read(task_dir).drones_at(np.zeros(1))[0]
     error = np.array(report["series"]["true"]["drones_enu"][0]) - start
     model = PRESETS["sitl"]
@@ -100,10 +105,6 @@ def assert_in_step_and_safe(report: dict) -> None:
     assert abs(flown / planned - 1.0) <= 0.15, (flown, planned)
     assert report["release_spread"] <= 0.05
     assert true["inter_drone_error_p95"] <= 0.08
-    # the formation at the planned height: relative altitudes count from where each drone
-    # stood, 0.10 m above the ground on SITL (home_height); counted from the ground, every
-    # drone of every flight flew about 0.09 m high
-    assert abs(true["common_offset_at_rest"][2]) <= PRESETS["sitl"].common_vertical
     assert report["verdict"]["safe"], report["verdict"]["reasons"]
 
 
