@@ -36,10 +36,10 @@ TRRT_ONLY = ("goal_bias", "goal_connection", "init_temperature", "refinement_rat
 
 
 class PlannerOptions(BaseModel):
-    """Which planner, with which parameters (default: ``trrt``, the paper's T-RRT, whose
-    missions three ArduCopter SITL autopilots flew safely in all 19 flights tried; ``bitrrt``
-    solves the users' scenes T-RRT does not, but its paths fly less accurately:
-    BENCHMARKS.md "Planner v2")."""
+    """Which planner, with which parameters (default: ``trrt``, the paper's T-RRT; ``bitrrt``
+    solves the users' scenes T-RRT does not, and its missions flew on three ArduCopter SITL
+    autopilots as safely as T-RRT's (19 of 19 each, BENCHMARKS.md "Home height"), but its
+    paths keep less thrust margin: BENCHMARKS.md "Planner v2")."""
 
     # Finite numbers only; seeds and counts are integers, not booleans or strings.
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
@@ -47,8 +47,8 @@ class PlannerOptions(BaseModel):
     algorithm: Algorithm = Field(
         "trrt",
         description="trrt (default: the paper's T-RRT), bitrrt (bidirectional, for narrow "
-        "passages and whole-workspace bounds; primitive shapes only, and its paths fly less "
-        "accurately: README, Known limitations), rrt, or OMPL's peers",
+        "passages and whole-workspace bounds; primitive shapes only, and its paths keep less "
+        "thrust margin: README, Known limitations), rrt, or OMPL's peers",
     )
     seed: Seed = Field(0, description="random seed: same seed, same path")
     time_budget: float = Field(60.0, gt=0, le=86_400, description="planning time limit [s]")
