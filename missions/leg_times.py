@@ -165,8 +165,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         flights = [flight_record(path) for path in args.flights]
     except (OSError, KeyError, ValueError, InputError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+        parser.exit(2, f"error: {error}\n")
     document = {
         "about": "per-leg durations of ArduCopter 4.5.7 SITL flights; see README.md",
         "mission_fields": list(MISSION_FIELDS),

@@ -87,7 +87,8 @@ def clear_end(
     # the highest clear pose within the approach, looked for from the top
     extras = np.arange(approach, RAISE_STEP / 2, -RAISE_STEP)
     height = next((lowest + float(e) for e in extras if clear(lowest + e)), lowest)
-    return q + height * up, VerticalLeg(np.asarray(q, dtype=float), q + height * up, surfaces)
+    high = q + height * up
+    return high, VerticalLeg(np.asarray(q, dtype=float), high, surfaces)
 
 
 def _touches_only(

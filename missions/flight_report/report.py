@@ -217,12 +217,13 @@ def _per_drone(values: NDArray[np.float64]) -> tuple[float, float, float]:
 
 
 def _common_offset_at_rest(
-    plan: PlannedFlight, t: NDArray[np.float64], displacement: NDArray[np.float64]
+    t: NDArray[np.float64], modelled: NDArray[np.float64], displacement: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """:attr:`SourceFigures.common_offset_at_rest` of displacements (N, 3 drones, 3)."""
+    """:attr:`SourceFigures.common_offset_at_rest` of displacements (N, 3 drones, 3) from
+    the ``modelled`` drones at times ``t``."""
     if len(t) < 2:
         return np.full(3, np.nan)
-    speed = np.linalg.norm(np.gradient(plan.drones_at(t), t, axis=0), axis=-1).max(axis=1)
+    speed = np.linalg.norm(np.gradient(modelled, t, axis=0), axis=-1).max(axis=1)
     at_rest = speed < REST_SPEED
     if not at_rest.any():
         return np.full(3, np.nan)
@@ -240,7 +241,8 @@ def _source_figures(
     system = problem.system
     plan_t, plan_drones = plan.progress_samples()
     flown = _flown(tracks, releases, t)
-    displacement = flown - plan.drones_at(t)  # (N, 3 drones, 3)
+    modelled = plan.drones_at(t)
+    displacement = flown - modelled  # (N, 3 drones, 3)
     in_time = np.linalg.norm(displacement, axis=-1)  # (N, 3)
     off_path = np.stack(
         [
@@ -290,7 +292,7 @@ def _source_figures(
         error_off_path_max=_per_drone(off_path.max(axis=0)),
         inter_drone_error_p95=_p95(inter),
         inter_drone_error_max=float(inter.max()),
-        common_offset_at_rest=_per_drone(_common_offset_at_rest(plan, t, displacement)),
+        common_offset_at_rest=_per_drone(_common_offset_at_rest(t, modelled, displacement)),
         converged=bool(rebuilt.converged.all()),
         feasible=bool(feasible.all()),
         collision_free=bool(free[feasible].all()),
