@@ -92,3 +92,20 @@ def test_shortcut_never_lengthens_and_stays_valid(system):
         assert all(validity.motion_is_valid(a, b) for a, b in itertools.pairwise(smooth))
         if cost_aware:
             assert after.mechanical_work <= before.mechanical_work + 1e-6 * before.max_cost
+
+
+def test_shortcut_checks_the_segments_its_cut_leaves(system):
+    """A wall 1 cm thin across the workspace, between two samples of a motion: the motion
+    passes the checker, but a segment cut from it is sampled elsewhere and may not (7 of
+    these 50 seeds' paths had one when only the shortcut itself was checked). Every motion
+    of the smoothed path passes the checker (a Rescue path's cut segment once grazed a
+    roof)."""
+    space = ConfigurationSpace.for_system(system, (-6, -6, 1), (6, 6, 10), 0.5, 0.3, 1.8)
+    wall = ((0.01, -6, 1), (0.02, 6, 10))  # between P's samples at x = 0 and 0.05
+    validity = ToyValidity(system, space, boxes=[wall])
+    path = np.array([[-4.0, 0, 4, 0, 0, 0, 1, 1, 1], [4.0, 0, 4, 0, 0, 0, 1, 1, 1],
+                     [4.0, 4, 4, 0, 0, 0, 1, 1, 1]])  # fmt: skip
+    assert all(validity.motion_is_valid(a, b) for a, b in itertools.pairwise(path))
+    for seed in range(50):
+        smooth = shortcut_path(path, space, validity, ShortcutConfig(20, False), seed=seed)
+        assert all(validity.motion_is_valid(a, b) for a, b in itertools.pairwise(smooth)), seed
