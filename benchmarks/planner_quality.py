@@ -64,6 +64,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", required=True)
     parser.add_argument("--runs", type=int, default=100)
+    parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--budget", type=float, default=60.0)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--variant", nargs=2, action="append", default=[], metavar=("NAME", "JSON"))
@@ -74,18 +75,22 @@ def main() -> None:
         (scene, name, fields, seed, args.budget)
         for scene in args.scenes
         for name, fields in variants
-        for seed in range(args.runs)
+        for seed in range(args.first_seed, args.first_seed + args.runs)
     ]
     with ProcessPoolExecutor(args.workers) as pool:
         results = list(pool.map(run, *zip(*jobs, strict=True)))
     print(f"{'scene':<14} {'variant':<14} solved  avgC mean  maxC mean  slack [worst]  "
           "thrust [worst]  headroom [worst]")  # fmt: skip
+    table = {
+        (scene, name): np.array(
+            [r for job, r in zip(jobs, results, strict=True) if job[:2] == (scene, name) and r]
+        )
+        for scene in args.scenes
+        for name, _ in variants
+    }
     for scene in args.scenes:
         for name, _ in variants:
-            rows = np.array(
-                [r for job, r in zip(jobs, results, strict=True)
-                 if job[:2] == (scene, name) and r is not None]
-            )  # fmt: skip
+            rows = table[scene, name]
             if not len(rows):
                 print(f"{scene:<14} {name:<14} 0/{args.runs}")
                 continue
@@ -97,6 +102,34 @@ def main() -> None:
                 f"{rows[:, 1].mean():9.4g}  {margins}",
                 flush=True,
             )
+    if args.trrt:
+        print("\nAgainst T-RRT: 95 % bootstrap intervals of the difference (variant - trrt) of "
+              "mean avgC and of the median least margins")  # fmt: skip
+        for scene in args.scenes:
+            for name, _ in args.variant:
+                print(f"{scene:<14} {name:<14} {against(table[scene, name], table[scene, TRRT])}")
+
+
+#: The statistics compared with T-RRT's: column of run()'s tuple, name, statistic.
+COMPARED = ((0, "avgC", np.mean), (2, "slack", np.median), (3, "thrust", np.median),
+            (4, "headroom", np.median))  # fmt: skip
+
+
+def against(rows: np.ndarray, reference: np.ndarray, draws: int = 2000) -> str:
+    """Bootstrap intervals (percentile, ``draws`` resamples of each side's runs) of the
+    difference of avgC's mean and of the least margins' medians, rows minus reference."""
+    rng = np.random.default_rng(0)
+    if not (len(rows) and len(reference)):
+        return "-"
+    parts = []
+    for k, label, stat in COMPARED:
+        mine = rows[rng.integers(0, len(rows), (draws, len(rows))), k]
+        theirs = reference[rng.integers(0, len(reference), (draws, len(reference))), k]
+        difference = stat(mine, axis=1) - stat(theirs, axis=1)
+        low, high = np.percentile(difference, [2.5, 97.5])
+        point = stat(rows[:, k]) - stat(reference[:, k])
+        parts.append(f"{label} {point:+.3g} [{low:+.3g}, {high:+.3g}]")
+    return "  ".join(parts)
 
 
 if __name__ == "__main__":
