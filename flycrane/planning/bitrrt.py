@@ -36,9 +36,12 @@ Beyond OMPL's BiTRRT, each kept because it measured better (BENCHMARKS.md, "Plan
 - Partial extensions (``partial``): where the step collides, the part of it that is valid
   is kept when it is at least ``partial`` long (RRT-Connect's progress, one step at a
   time).
-- Alpha repair (``repair_share``): the alphas of a new node are moved towards the least
-  collision-free cost from the near node's alphas (a bounded descent on log c); a sample's
-  own alphas mean nothing for its pose.
+- Alpha repair (``repair_share``): the alphas of a new node are moved from the near
+  node's towards the least collision-free value of the repair's objective (a bounded
+  descent); a sample's own alphas mean nothing for its pose. The objective is eq. 8 with
+  the margins below what the path's endpoints keep counted ``1 + margin_weight`` times
+  (:mod:`flycrane.planning.extension_kernel`): on eq. 8 alone the repair bought slack the
+  path cannot keep with thrust and headroom it can.
 - Reshape-first: where the straight motion fails, change the formation in place first.
 - Transition test on log c (``log_cost``): the normalized cost spans 1e7-1e11 along one
   path, so a climb worth accepting in a valley (x2) and one out of a cliff (x2) differ by
@@ -61,6 +64,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from flycrane.cable_system import CableSystem
+from flycrane.cost import cost_margin_factors
 from flycrane.errors import FieldProblem, InputError
 from flycrane.planning.bitrrt_kernel import (
     ATTEMPTS,
@@ -87,6 +92,7 @@ from flycrane.planning.result import (
 )
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.tree import path_from_root
+from flycrane.statics import evaluate_statics
 
 logger = logging.getLogger(__name__)
 
@@ -99,6 +105,9 @@ class BiTRRTConfig:
     #: share of the extensions whose new node's alphas are repaired (the others keep the
     #: target's: the formation must also explore, e.g. narrow before a corridor)
     repair_share: float = 0.7
+    #: weight w of the repair's capped term, log c + w log c_cap: how much more a margin
+    #: counts below what the endpoints keep (module docstring; 0: eq. 8 alone)
+    margin_weight: float = 1.0
     translate_share: float = 0.3  #: extensions that move the nearest node's position only
     rotate_share: float = 0.3  #: extensions that turn and reshape it in place only
     local_share: float = 0.2  #: targets near a random node of the growing tree
@@ -127,6 +136,7 @@ class BiTRRTConfig:
         checks = [(name, 0.0 <= getattr(self, name) <= 1.0, "must be in [0, 1]") for name in shares]
         checks += [
             ("step", self.step is None or self.step > 0, "must be > 0"),
+            ("margin_weight", self.margin_weight >= 0, "must be >= 0"),
             (
                 "translate_share",
                 self.translate_share + self.rotate_share <= 1.0,
@@ -183,6 +193,13 @@ class MeshScene(InputError):
         super().__init__([FieldProblem("algorithm", MESH_REASON)], "planner options")
 
 
+def margin_caps(system: CableSystem, ends: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The repair's caps (module docstring): the least slack, overload and thrust factors
+    of eq. 8 at the path's endpoints ``ends`` (2, 9), shape (3,)."""
+    factors = cost_margin_factors(system, evaluate_statics(system, ends))
+    return np.array([factors[:, 3:9].min(), factors[:, 9:15].min(), factors[:, :3].min()])
+
+
 class BiTRRT:
     """Bidirectional T-RRT (module docstring)."""
 
@@ -206,10 +223,17 @@ class BiTRRT:
         )
         self.space, self.validity, self.name = space, validity, name
 
-    def _params(self, free_level: float) -> Params:
+    def _params(self, free_level: float, caps: NDArray[np.float64]) -> Params:
         """The loop's numbers: the config's fields of the same names (their Nones filled in
-        by __init__), the cost below which climbs are free, the checker's resolution."""
-        given = {"free_level": free_level, "resolution": self.validity.resolution}
+        by __init__), the cost below which climbs are free, the checker's resolution, the
+        repair's caps (:func:`margin_caps`)."""
+        given = {
+            "free_level": free_level,
+            "resolution": self.validity.resolution,
+            "cap_slack": caps[0],
+            "cap_overload": caps[1],
+            "cap_thrust": caps[2],
+        }
         return Params(
             **{
                 name: given[name] if name in given else float(getattr(self.config, name))
@@ -256,7 +280,7 @@ class BiTRRT:
             if not ok:
                 return finish(status, reason=self.validity.describe_invalid(q))
         free_level = float(max(cost)) if cfg.free_below_endpoints else -math.inf
-        params = self._params(free_level).array()
+        params = self._params(free_level, margin_caps(self.validity.system, ends)).array()
         model, work = self.validity.compiled.model, self.validity.work
         for t, (root, c) in enumerate(zip(ends, cost, strict=True)):
             add_node(forest.arrays(), t, root, -1, float(c), model[4])

@@ -93,6 +93,12 @@ class Params:
     partial: float
     reshape_first: float
     resolution: float
+    #: the repair's objective: caps on eq. 8's slack, overload and thrust factors and the
+    #: capped term's weight (:func:`~flycrane.planning.extension_kernel.repair_objective`)
+    cap_slack: float
+    cap_overload: float
+    cap_thrust: float
+    margin_weight: float
 
     def array(self) -> np.ndarray:
         return np.array([getattr(self, name) for name in self.__dataclass_fields__])
@@ -117,7 +123,11 @@ class Params:
     P_PARTIAL,
     P_RESHAPE_FIRST,
     P_RESOLUTION,
-) = range(18)
+    P_CAP_SLACK,
+    P_CAP_OVERLOAD,
+    P_CAP_THRUST,
+    P_MARGIN_WEIGHT,
+) = range(22)
 
 
 class Forest:
@@ -276,7 +286,7 @@ def grow(forest, t, near, target, repair, params, model, work, counters, out) ->
     weights, resolution = model[4], params[P_RESOLUTION]
     outcome, cost = extend(
         qs[t, near], target, params[P_STEP], repair, params[P_PARTIAL], resolution, model, work,
-        out,
+        out, params[P_CAP_SLACK : P_MARGIN_WEIGHT + 1],
     )  # fmt: skip
     if outcome == BLOCKED and params[P_RESHAPE_FIRST] > 0.0:
         middle = np.empty(9)

@@ -6,11 +6,23 @@ new configuration and the motion to it (:mod:`flycrane.planning.validity_kernel`
 
 Alpha repair. For a platform pose the three alphas are redundant: they change the drones'
 positions, hence the cost and the drones' and cables' collisions, not the load's. Starting
-from the near node's alphas (the extension's warm start), a few steps of descent on log c
-over the alphas, with finite differences and backtracking, move them towards the least
-cost that is collision-free (an invalid configuration counts as +inf, so the descent stops
-at obstacles and infeasibility). It is bounded (ALPHA_STEP per step, REPAIR_STEPS steps)
-so each extension moves the alphas by little, and the motion check covers the change.
+from the near node's alphas (the extension's warm start), a few steps of descent on the
+repair's objective over the alphas, with finite differences and backtracking, move them
+towards its least value that is collision-free (an invalid configuration counts as +inf,
+so the descent stops at obstacles and infeasibility). It is bounded (ALPHA_STEP per step,
+REPAIR_STEPS steps) so each extension moves the alphas by little, and the motion check
+covers the change.
+
+The repair's objective is ``log c + w log c_cap`` (:func:`repair_objective`): eq. 8, plus
+eq. 8 again with each of its factors capped at the least factor of its kind (slack,
+overload, thrust) that the path's two endpoints have; ``w`` is
+:attr:`~flycrane.planning.bitrrt.BiTRRTConfig.margin_weight`. So a margin counts (1 + w)
+times below what the endpoints keep and once above it. Why: eq. 8 multiplies twelve
+tension factors against three thrust factors, and its least value at a strained pose (the
+Puzzle's tilted passage) lies at low alphas, where it buys slack the path cannot keep
+anyway (every path hovers at its endpoints, which bound its least margins) with thrust and
+headroom it can: on eq. 8 alone bitrrt's Puzzle paths kept 2.2 N of thrust margin where
+T-RRT's kept 3.2 N (BENCHMARKS.md, "Planner v2: the formation's objective").
 """
 
 from __future__ import annotations
@@ -64,30 +76,58 @@ def embed_into(q, weights, out) -> None:
 
 
 @numba.njit(cache=True, nogil=True)
-def _log_cost(q, model, work) -> float:
-    cost, valid = state_check(q, model, work, True)
-    return math.log(cost) if valid else math.inf
+def repair_objective(smodel, f0, v, m, caps) -> float:
+    """The repair's objective (module docstring) of a feasible configuration from its
+    statics, :func:`statics_row`'s f0 (6,), v (6,), m (3,): log c + caps[3] x log c_cap,
+    c_cap being eq. 8 with its slack, overload and thrust factors capped at caps[0],
+    caps[1] and caps[2]. The planner's checker evaluates eq. 8's normalized form, whose
+    factors these are."""
+    thrust_max, f_lo, f_hi = smodel[7], smodel[8], smodel[9]
+    log_cost, log_capped = 0.0, 0.0
+    for i in range(6):
+        span = f_hi[i] - f_lo[i]
+        slack = (f0[i] - v[i] - f_lo[i]) / span
+        overload = (f_hi[i] - f0[i] - v[i]) / span
+        log_cost -= math.log(slack) + math.log(overload)
+        log_capped -= math.log(min(slack, caps[0])) + math.log(min(overload, caps[1]))
+    for k in range(3):
+        thrust = (thrust_max[k] - m[k]) / thrust_max[k]
+        log_cost -= math.log(thrust)
+        log_capped -= math.log(min(thrust, caps[2]))
+    return log_cost + caps[3] * log_capped
 
 
 @numba.njit(cache=True, nogil=True)
-def _statics_log_cost(q, model, work) -> float:
-    """log c without the collision check: the probes of a descent only need the slope."""
+def _objective(q, model, work, caps) -> float:
+    """The repair's objective of q, +inf where q is invalid."""
+    if not state_check(q, model, work, True)[1]:
+        return math.inf
+    return repair_objective(model[1], work[1], work[2], work[3], caps)
+
+
+@numba.njit(cache=True, nogil=True)
+def _statics_objective(q, model, work, caps) -> float:
+    """The repair's objective without the collision check: the probes of a descent only
+    need the slope."""
     bounds, smodel = model[0], model[1]
     if not in_bounds(q, bounds):
         return math.inf
     cost = statics_row(q, smodel, work[1], work[2], work[3], work[0])
-    return math.log(cost) if cost < math.inf else math.inf
+    if not cost < math.inf:
+        return math.inf
+    return repair_objective(smodel, work[1], work[2], work[3], caps)
 
 
 @numba.njit(cache=True, nogil=True)
-def repair_alphas(q, model, work, gradient) -> float:
-    """Descend log c over q's alphas in place (module docstring); returns log c at the end
-    (+inf if q is invalid and no step found a valid configuration). The slope is probed
+def repair_alphas(q, model, work, gradient, caps) -> float:
+    """Descend the repair's objective over q's alphas in place (module docstring); returns
+    the objective at the end (+inf if q is invalid and no step found a valid
+    configuration). ``caps``: :func:`repair_objective`'s. The slope is probed
     on the statics alone (a collision check costs 2-3 times the statics); every step taken
     is checked whole, so a step into an obstacle is refused and shortened."""
     bounds = model[0]
     low, high = bounds[7], bounds[8]
-    value = _log_cost(q, model, work)
+    value = _objective(q, model, work, caps)
     if not value < math.inf:
         return value
     for _ in range(REPAIR_STEPS):
@@ -96,7 +136,7 @@ def repair_alphas(q, model, work, gradient) -> float:
             saved = q[6 + k]
             probe = ALPHA_PROBE if saved + ALPHA_PROBE <= high else -ALPHA_PROBE
             q[6 + k] = saved + probe
-            shifted = _statics_log_cost(q, model, work)
+            shifted = _statics_objective(q, model, work, caps)
             q[6 + k] = saved
             # A probe into infeasibility: push away from it.
             slope = (shifted - value) / probe if shifted < math.inf else 1e3 * np.sign(probe)
@@ -111,7 +151,7 @@ def repair_alphas(q, model, work, gradient) -> float:
             for k in range(3):
                 gradient[3 + k] = q[6 + k]
                 q[6 + k] = min(high, max(low, q[6 + k] - step * gradient[k] / norm))
-            trial = _log_cost(q, model, work)
+            trial = _objective(q, model, work, caps)
             if trial < value:
                 value, improved = trial, True
                 break
@@ -124,9 +164,9 @@ def repair_alphas(q, model, work, gradient) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
-def _choose_alphas(near, target, out, model, work, scratch) -> bool:
-    """Start the repair from the least-cost valid of: the near node's alphas (the warm
-    start), the interpolated ones (out's), the target's; if none is valid,
+def _choose_alphas(near, target, out, model, work, scratch, caps) -> bool:
+    """Start the repair from the valid one of least objective of: the near node's alphas
+    (the warm start), the interpolated ones (out's), the target's; if none is valid,
     :func:`choose_formation` near the near node's. False if nothing is valid. The
     candidates are ranked by their statics and checked for collisions in that order, so
     usually one collision check decides."""
@@ -138,7 +178,7 @@ def _choose_alphas(near, target, out, model, work, scratch) -> bool:
     for c in range(3):
         for k in range(3):
             out[6 + k] = candidates[c, k]
-        costs[c] = _statics_log_cost(out, model, work)
+        costs[c] = _statics_objective(out, model, work, caps)
     for c in np.argsort(costs):
         if not costs[c] < math.inf:
             break
@@ -146,7 +186,7 @@ def _choose_alphas(near, target, out, model, work, scratch) -> bool:
             out[6 + k] = candidates[c, k]
         if state_check(out, model, work, True)[1]:
             return True
-    return choose_formation(out, near[6:9], model, work, scratch)
+    return choose_formation(out, near[6:9], model, work, scratch, caps)
 
 
 #: Formation choice: alphas per drone scanned, and nearest free ones combined per drone.
@@ -155,11 +195,11 @@ FORMATION_NEAREST = 3
 
 
 @numba.njit(cache=True, nogil=True)
-def choose_formation(q, preferred, model, work, scratch) -> bool:
+def choose_formation(q, preferred, model, work, scratch, caps) -> bool:
     """Alphas for q's pose when none of the usual candidates is valid (module docstring):
     per drone, the FORMATION_NEAREST alphas of a FORMATION_GRID scan nearest to
     ``preferred`` (3,) at which that drone and its cables touch nothing; of their
-    combinations, the valid one of least cost goes into q. False if none is valid."""
+    combinations, the valid one of least objective goes into q. False if none is valid."""
     bounds, _, kin, scene, _ = model
     collision_work = work[4:10]
     low, high = bounds[7], bounds[8]
@@ -189,7 +229,7 @@ def choose_formation(q, preferred, model, work, scratch) -> bool:
         for j in range(counts[1]):
             for m in range(counts[2]):
                 q[6], q[7], q[8] = options[0, i], options[1, j], options[2, m]
-                value = _log_cost(q, model, work)
+                value = _objective(q, model, work, caps)
                 if value < best:
                     best = value
                     chosen[0], chosen[1], chosen[2] = q[6], q[7], q[8]
@@ -203,15 +243,18 @@ NO_REPAIR, REPAIR, REPAIR_UNLESS_REACHED = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
-def extend(near, target, step, repair, partial, resolution, model, work, out) -> tuple[int, float]:
+def extend(
+    near, target, step, repair, partial, resolution, model, work, out, caps
+) -> tuple[int, float]:
     """One extension from ``near`` towards ``target`` into ``out`` (9,): (outcome, cost).
 
     The new configuration lies ``step`` (chordal) along the local path, or is the target if
-    closer; its alphas are repaired (warm start: the near node's alphas) as ``repair``
-    says. REACHED means ``out`` equals the target. Where the new configuration is invalid
-    and ``partial`` > 0, ``out`` is the last valid configuration towards it
-    (:func:`advance_partial`); where it is valid but the motion to it is not, the outcome
-    is BLOCKED and the caller chooses (:func:`reshape_first`, :func:`advance_partial`).
+    closer; its alphas are repaired (warm start: the near node's alphas; ``caps``:
+    :func:`repair_objective`'s) as ``repair`` says. REACHED means ``out`` equals the
+    target. Where the new configuration is invalid and ``partial`` > 0, ``out`` is the last
+    valid configuration towards it (:func:`advance_partial`); where it is valid but the
+    motion to it is not, the outcome is BLOCKED and the caller chooses
+    (:func:`reshape_first`, :func:`advance_partial`).
     """
     weights = model[4]
     scratch = work[-1]
@@ -226,9 +269,9 @@ def extend(near, target, step, repair, partial, resolution, model, work, out) ->
     interpolate_into(near, target, 1.0 if reached else step / distance, out)
     if repair == REPAIR or (repair == REPAIR_UNLESS_REACHED and not reached):
         reached = False
-        if not _choose_alphas(near, target, out, model, work, scratch[2]):
+        if not _choose_alphas(near, target, out, model, work, scratch[2], caps):
             return FAILED, math.inf
-        if not repair_alphas(out, model, work, scratch[2]) < math.inf:
+        if not repair_alphas(out, model, work, scratch[2], caps) < math.inf:
             return FAILED, math.inf
     cost, valid = state_check(out, model, work, True)
     if valid:

@@ -16,13 +16,17 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+from flycrane.cost import cost_margin_factors
 from flycrane.planning import bitrrt, bitrrt_kernel
-from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig, MeshScene
+from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig, MeshScene, margin_caps
 from flycrane.planning.bitrrt_kernel import MARGIN
+from flycrane.planning.extension_kernel import repair_objective
 from flycrane.planning.planners import PlannerOptions, make_planner, plan
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.result import PlannerStatus, TerminationCondition
 from flycrane.scene import scene_from_dict
+from flycrane.statics import evaluate_statics
+from flycrane.statics_kernel import compiled_statics, statics_model
 
 #: Generous: the runs below take well under a second to tens of seconds (BENCHMARKS.md);
 #: the budget only bounds a machine under heavy load, it is not what is tested.
@@ -145,7 +149,7 @@ def test_mesh_scenes_are_refused_naming_the_alternative():
         BiTRRT(meshed.space, meshed.validity)
     with pytest.raises(MeshScene):
         make_planner(meshed.space, meshed.validity, PlannerOptions(algorithm="bitrrt"))
-    # The default, T-RRT, checks meshes with fcl.
+    # The default falls back to T-RRT, which checks meshes with fcl.
     assert make_planner(meshed.space, meshed.validity, PlannerOptions()).name == "trrt"
 
 
@@ -159,3 +163,79 @@ def test_options_written_out_whole_read_back():
     """A task file (task.json) carries every option, T-RRT's at their defaults too."""
     options = PlannerOptions(algorithm="bitrrt", seed=4)
     assert PlannerOptions.model_validate_json(options.model_dump_json()) == options
+
+
+def reference_objective(problem: PlanningProblem, q: np.ndarray, caps, weight: float):
+    """log c + w log c_cap from the numpy statics and eq. 8's factors (flycrane.cost)."""
+    factors = cost_margin_factors(problem.system, evaluate_statics(problem.system, q))
+    capped = np.minimum(factors, np.repeat([caps[2], caps[0], caps[1]], [3, 6, 6]))
+    return -np.log(factors).sum(axis=1) - weight * np.log(capped).sum(axis=1)
+
+
+def test_the_margin_caps_are_the_endpoints_least_factors():
+    """At the Rescue's hovers (design.md section 5: f0 = 3.11 N, v = 1.18 N, m = 17.14 N
+    on the default system) the caps are those margins over their ranges."""
+    problem = PlanningProblem.named("rescue")
+    caps = margin_caps(problem.system, np.stack([problem.start, problem.goal]))
+    np.testing.assert_allclose(
+        caps, [(3.11 - 1.18 - 0.5) / 29.5, (30 - 3.11 - 1.18) / 29.5, (25 - 17.14) / 25],
+        atol=2e-4,
+    )  # fmt: skip
+
+
+def test_the_repair_objective_matches_eq8_and_its_capped_form():
+    """The compiled objective against the numpy statics on random feasible configurations
+    of the Puzzle's strained passage (tilts up to 0.45 rad), with and without the cap."""
+    problem = PlanningProblem.named("puzzle")
+    rng = np.random.default_rng(5)
+    q = problem.space.sample_uniform(rng, 4000)
+    q[:, 4] = rng.uniform(0.0, 0.45, len(q))
+    f0, v, m, cost = compiled_statics(problem.system, q)
+    feasible = np.isfinite(cost)
+    assert feasible.sum() > 500
+    caps = np.append(margin_caps(problem.system, np.stack([problem.start, problem.goal])), 0.0)
+    smodel = statics_model(problem.system)
+    for weight in (0.0, 1.0, 3.0):
+        caps[3] = weight
+        mine = [repair_objective(smodel, f0[i], v[i], m[i], caps) for i in np.flatnonzero(feasible)]
+        expected = reference_objective(problem, q[feasible], caps, weight)
+        np.testing.assert_allclose(mine, expected, rtol=1e-9)
+    # Without the capped term it is eq. 8 itself.
+    np.testing.assert_allclose(reference_objective(problem, q[feasible], caps, 0.0),
+                               np.log(cost[feasible]), rtol=1e-9)  # fmt: skip
+
+
+def test_the_objective_keeps_the_margins_eq8_trades_away():
+    """Brute force over the alphas at a pose of the Puzzle's tilted passage (0.3 rad): eq.
+    8's least value keeps more slack than the hovers at the path's ends can (1.43 N), paid
+    with thrust margin; the repair's objective (margin_weight 1) keeps slack near that
+    level and the thrust margin and headroom above eq. 8's choice (measured: slack 2.14 ->
+    1.58 N, thrust margin 1.93 -> 3.17 N, headroom 21.58 -> 22.20 N)."""
+    problem = PlanningProblem.named("puzzle")
+    system = problem.system
+    pose = np.array([0.0, 0.0, 6.3, 2.1, 0.3, 0.0])
+    grid = np.linspace(problem.space.alpha_low, problem.space.alpha_high, 29)
+    alphas = np.array(list(itertools.product(grid, repeat=3)))
+    q = np.column_stack([np.repeat(pose[None], len(alphas), axis=0), alphas])
+    report = evaluate_statics(system, q)
+    factors = cost_margin_factors(system, report)
+    ok = (factors > 0).all(axis=1)
+    caps = margin_caps(system, np.stack([problem.start, problem.goal]))
+    objective = reference_objective(problem, q[ok], caps, BiTRRTConfig().margin_weight)
+    by_cost = np.flatnonzero(ok)[np.argmin(-np.log(factors[ok]).sum(axis=1))]
+    by_objective = np.flatnonzero(ok)[np.argmin(objective)]
+
+    def margins(i: int) -> tuple[float, float, float]:
+        return (
+            float(report.slack_margin[i].min()),
+            float(report.overload_margin[i].min()),
+            float(report.thrust_margin[i].min()),
+        )
+
+    slack, headroom, thrust = margins(by_cost)
+    new_slack, new_headroom, new_thrust = margins(by_objective)
+    hover_slack = caps[0] * 29.5
+    assert slack > hover_slack + 0.5  # slack no path through the hovers can keep
+    assert new_slack >= hover_slack - 0.2
+    assert new_thrust >= thrust + 1.0
+    assert new_headroom >= headroom + 0.5
