@@ -72,8 +72,10 @@ def _self_contained(task: TaskSpec, resolved: ResolvedTask) -> dict[str, Any]:
     """The task with its system, scene, start, goal and planner written out, so that the
     task's directory alone says what was planned (the flight report reads it)."""
     problem = resolved.problem
+    algorithm = task.planner.algorithm_for(problem.validity.has_meshes)
     return task.model_copy(
         update={
+            "planner": task.planner.model_copy(update={"algorithm": algorithm}),
             "system": problem.system.spec,
             "scene": problem.scene,
             "start": tuple(float(v) for v in resolved.start),

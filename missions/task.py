@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from flycrane.errors import FieldProblem, InputError
-from flycrane.planning.bitrrt import MESH_REASON
+from flycrane.planning.bitrrt import MESH_REASON, MeshScene
 from flycrane.planning.planners import PlannerOptions
 from flycrane.planning.poses import configuration_from_pose
 from flycrane.planning.problem import PlanningProblem
@@ -183,8 +183,10 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
                  for p in problems_from_validation_error(error)]
             ) from None  # fmt: skip
     problem = PlanningProblem.from_scene(scene, system, scene_dir)
-    if task.planner.algorithm == "bitrrt" and problem.validity.has_meshes:
-        raise InputError([FieldProblem("planner.algorithm", MESH_REASON)])
+    try:
+        task.planner.algorithm_for(problem.validity.has_meshes)
+    except MeshScene:
+        raise InputError([FieldProblem("planner.algorithm", MESH_REASON)]) from None
     ends, legs = [], []
     ends_given = (("start", task.start, scene.start), ("goal", task.goal, scene.goal))
     for what, given, default in ends_given:

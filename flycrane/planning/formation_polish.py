@@ -1,41 +1,41 @@
-"""Formation polish: raise a path's least thrust margin by reshaping the formation at its
-waypoints, never lowering its least tension margins nor raising its largest cost.
+"""Formation polish: raise a path's least thrust margin and headroom by reshaping the
+formation a little at its waypoints, never lowering any of its least margins nor raising
+its largest cost.
 
-Why: the cost (eq. 8) multiplies twelve tension factors against three thrust factors, so a
-planner that drives the cost down -- bitrrt repairs every new node's alphas towards the
-least cost -- buys tension margin with thrust margin wherever the pose strains the cables:
-on the Puzzle's tilted passage its paths came within 2.2 N of a drone's thrust limit (the
-median over 100 seeds) where T-RRT's random formations kept 3.2 N (BENCHMARKS.md, "Planner
-v2"). Fig. 6's margins are bottlenecks, the least value along the path, which no
-per-configuration cost sees.
+Why: Fig. 6's margins are bottlenecks, the least value along the path, which no
+per-configuration cost sees. bitrrt's repair already weighs the margins the endpoints
+bound (:mod:`flycrane.planning.extension_kernel`), but a smoothed path's long legs
+interpolate the formation between waypoints chosen for other poses, and its least margins
+fall where the pose strains the cables most (the Puzzle's tilted passage, the Rescue's
+yaw above the roofs).
 
 The platform's poses are kept: the alphas are the formation's redundancy (design.md
 section 3) and the platform's path, which carries the payload past the obstacles, stays
 the same curve; only drones and cables move. Each pass visits the interior waypoints, the
-one of least thrust margin first, and moves its alphas (Nelder-Mead in the alpha box,
-scipy) to maximize a soft minimum of the thrust margin over the two local paths that meet
-there. Only waypoints whose local paths come within ``band`` of the path's least thrust
-margin are moved: every change of the formation is a manoeuvre the three drones must fly
-in step, so it is spent where the margin is the path's bottleneck (polishing every
-waypoint failed 3 of 20 Rescue and Puzzle mission generations where the unpolished paths
-passed; BENCHMARKS.md, "Formation polish"). A move is kept when it raises that soft minimum
-and:
+one nearest the path's bottleneck first, and moves its alphas (Nelder-Mead in a box,
+scipy) to maximize the soft minimum of the thrust margin plus that of the headroom
+(h - m and f_hi - t_hi, in N: the two margins of Fig. 6 that grow with a more upright
+formation, as the least slack does not) over the two local paths that meet there. A move
+is kept when it raises that sum, both motions are valid (collision included), and the two
+local paths keep every least margin (slack, headroom, thrust) at or above the whole path's
+and their cost at or below the path's largest before the polish: the path's least margins
+never drop and its maxC never rises.
 
-- does not lower the least thrust margin of those two local paths;
-- keeps their least slack and headroom margins (t_lo - f_lo, f_hi - t_hi) at or above the
-  whole path's before the polish, and their cost at or below the path's largest (so the
-  path's least margins and maxC are never worse);
-- both motions are valid (collision included).
+What it may move, and why so little:
+
+- only waypoints whose local paths come within ``band`` (0.1 N) of the path's least
+  thrust margin or headroom: a reshaped formation is a manoeuvre the three drones must fly
+  in step, and the average cost (avgC) rises with every move;
+- each alpha at most ``reach`` (0.1 rad) from the planner's: unbounded, the polish took
+  alphas to the ends of their range and reshaped the formation in the Puzzle's passage,
+  and on three ArduCopter SITL autopilots 2 of 14 of those Puzzle missions put the load
+  into the slab, repeatably; with 0.1 rad none of 29 did (BENCHMARKS.md, "Planner v2: the
+  formation's objective").
 
 A soft minimum (-tau log sum exp(-t / tau)) rather than the minimum: where several
 waypoints share a low-margin stretch, moving one of them cannot raise the stretch's hard
 minimum, which its neighbours hold, but it raises the soft one, and the next pass moves the
 neighbours. All margins are measured on the path discretized at the metrics resolution.
-
-The polish is asked for (``PlannerOptions.polish``), not the default: the formation it
-reshapes in a narrow passage is flown less accurately; on three SITL autopilots 1-2 of 13
-polished Puzzle missions per run put the long bar into the slab where none of the
-unpolished ones did (BENCHMARKS.md, "Formation polish" and "Home height").
 """
 
 from __future__ import annotations
@@ -63,8 +63,10 @@ class PolishConfig:
     softness: float = 0.2  #: tau of the soft minimum [N]
     resolution: float = METRICS_RESOLUTION  #: sampling step of the local paths
     #: polish only where the two local paths at a waypoint come within this of the path's
-    #: least thrust margin [N] (module docstring)
-    band: float = 0.5
+    #: least thrust margin or headroom [N] (module docstring)
+    band: float = 0.1
+    #: how far each alpha may move from the planner's [rad] (module docstring)
+    reach: float = 0.1
 
     def __post_init__(self) -> None:
         checks = [
@@ -73,6 +75,7 @@ class PolishConfig:
             ("softness", self.softness > 0, "must be > 0"),
             ("resolution", self.resolution > 0, "must be > 0"),
             ("band", self.band >= 0, "must be >= 0"),
+            ("reach", self.reach >= 0, "must be >= 0"),
         ]
         problems = [FieldProblem(name, why) for name, ok, why in checks if not ok]
         if problems:
@@ -84,14 +87,18 @@ class _Margins:
     """Least margins and largest cost over a stretch of configurations [N]."""
 
     slack: float
-    headroom: float
+    headroom: NDArray[np.float64]  #: (K,) per configuration
     thrust: NDArray[np.float64]  #: (K,) per configuration
     cost: float
 
-    def soft_thrust(self, softness: float) -> float:
-        t = self.thrust
-        low = t.min()
-        return float(low - softness * np.log(np.exp(-(t - low) / softness).sum()))
+    def objective(self, softness: float) -> float:
+        """Soft minimum of the thrust margin plus that of the headroom [N]."""
+        return _soft_minimum(self.thrust, softness) + _soft_minimum(self.headroom, softness)
+
+
+def _soft_minimum(t: NDArray[np.float64], softness: float) -> float:
+    low = t.min()
+    return float(low - softness * np.log(np.exp(-(t - low) / softness).sum()))
 
 
 def _margins(system: CableSystem, q: NDArray[np.float64]) -> _Margins:
@@ -100,7 +107,7 @@ def _margins(system: CableSystem, q: NDArray[np.float64]) -> _Margins:
     f0, v, m, cost = compiled_statics(system, q)
     return _Margins(
         slack=float((f0 - v - system.tension_min).min()),
-        headroom=float((system.tension_max - f0 - v).min()),
+        headroom=(system.tension_max - f0 - v).min(axis=1),
         thrust=(system.max_thrusts - m).min(axis=1),
         cost=float(cost.max()),
     )
@@ -114,35 +121,57 @@ def polish_formation(
     config: PolishConfig,
     termination: TerminationCondition | None = None,
 ) -> NDArray[np.float64]:
-    """The path with its waypoints' alphas moved to raise its least thrust margin (module
-    docstring); same shape, same poses, same end points."""
+    """The path with its waypoints' alphas moved to raise its least thrust margin and
+    headroom (module docstring); same shape, same poses, same end points."""
     path = np.array(path, dtype=float)
-    low, high = space.alpha_low, space.alpha_high
-    before = _margins(system, space.discretize_path(path, config.resolution))
-    if not np.isfinite(before.cost):
+    planned = path[:, 6:].copy()
+
+    def whole() -> _Margins:
+        return _margins(system, space.discretize_path(path, config.resolution))
+
+    least = whole()
+    if not np.isfinite(least.cost):
         return path  # an infeasible path has no margins to keep; nothing is polished
+    highest_cost = least.cost
 
     def stretch(a: NDArray, q: NDArray, b: NDArray) -> _Margins:
         first = space.discretize(a, q, config.resolution)
         second = space.discretize(q, b, config.resolution)
         return _margins(system, np.concatenate([first, second[1:]]))
 
-    def keeps_bounds(m: _Margins) -> bool:
-        return m.slack >= before.slack and m.headroom >= before.headroom and m.cost <= before.cost
+    def shortfall(m: _Margins) -> float:
+        """How far a stretch falls below the path's least margins or above its largest
+        cost: a move that keeps them (0) never lowers the path's least margins."""
+        return (
+            max(0.0, least.slack - m.slack)
+            + max(0.0, least.headroom.min() - m.headroom.min())
+            + max(0.0, least.thrust.min() - m.thrust.min())
+            + max(0.0, np.log(m.cost / highest_cost))
+        )
 
     for _ in range(config.passes):
         moved = False
-        own = _margins(system, path).thrust
-        least = _margins(system, space.discretize_path(path, config.resolution)).thrust.min()
-        for j in 1 + np.argsort(own[1:-1], kind="stable"):
+        own = _margins(system, path)
+        # Nearest the bottleneck first: the waypoint whose own margin, thrust or headroom,
+        # is closest to the path's least of that margin.
+        closeness = np.minimum(own.thrust - least.thrust.min(), own.headroom - least.headroom.min())
+        for j in 1 + np.argsort(closeness[1:-1], kind="stable"):
             if termination is not None and termination() is not None:
                 return path
             a, b = path[j - 1], path[j + 1]
             current = stretch(a, path[j], b)
-            if current.thrust.min() > least + config.band:
+            if (
+                current.thrust.min() > least.thrust.min() + config.band
+                and current.headroom.min() > least.headroom.min() + config.band
+            ):
                 continue
 
-            def with_alphas(alphas: NDArray, j: int = j) -> NDArray:
+            low = np.maximum(space.alpha_low, planned[j] - config.reach)
+            high = np.minimum(space.alpha_high, planned[j] + config.reach)
+
+            def with_alphas(
+                alphas: NDArray, j: int = j, low: NDArray = low, high: NDArray = high
+            ) -> NDArray:
                 q = path[j].copy()
                 q[6:] = np.clip(alphas, low, high)
                 return q
@@ -151,32 +180,27 @@ def polish_formation(
                 m = stretch(a, with_alphas(alphas), b)
                 if not np.isfinite(m.cost):
                     return np.inf
-                # Exact penalties: the optimum keeps the bounds where it can.
-                shortfall = (
-                    max(0.0, before.slack - m.slack)
-                    + max(0.0, before.headroom - m.headroom)
-                    + max(0.0, np.log(m.cost / before.cost))
-                )
-                return -m.soft_thrust(config.softness) + 100.0 * shortfall
+                # An exact penalty: the optimum keeps the bounds where it can.
+                return -m.objective(config.softness) + 100.0 * shortfall(m)
 
             found = minimize(
                 objective,
                 path[j, 6:],
                 method="Nelder-Mead",
-                bounds=[(low, high)] * 3,
+                bounds=list(zip(low, high, strict=True)),
                 options={"maxfev": config.evaluations, "xatol": 1e-3},
             )
             q = with_alphas(found.x)
             new = stretch(a, q, b)
             # A gain of at least 1 mN, so that a sweep of rounding-level moves ends the polish.
             if (
-                new.soft_thrust(config.softness) > current.soft_thrust(config.softness) + 1e-3
-                and new.thrust.min() >= current.thrust.min()
-                and keeps_bounds(new)
+                new.objective(config.softness) > current.objective(config.softness) + 1e-3
+                and shortfall(new) == 0.0
                 and validity.motion_is_valid(a, q)
                 and validity.motion_is_valid(q, b)
             ):
                 path[j] = q
+                least = whole()
                 moved = True
         if not moved:
             break

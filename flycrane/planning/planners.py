@@ -2,7 +2,8 @@
 
 :class:`PlannerOptions` is the user-facing schema (tasks, CLI, benchmark); :func:`plan`
 runs the chosen planner, smooths its path with random shortcuts (cost-aware for the
-cost-aware planners), polishes its formation if asked and computes the path metrics.
+cost-aware planners), polishes its formation (bitrrt's by default) and computes the path
+metrics.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from flycrane.metrics import PathMetrics, path_metrics
-from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig
+from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig, MeshScene
 from flycrane.planning.formation_polish import PolishConfig, polish_formation
 from flycrane.planning.interfaces import CompiledChecker, Planner
 from flycrane.planning.ompl_peers import OmplPlanner
@@ -36,19 +37,18 @@ TRRT_ONLY = ("goal_bias", "goal_connection", "init_temperature", "refinement_rat
 
 
 class PlannerOptions(BaseModel):
-    """Which planner, with which parameters (default: ``trrt``, the paper's T-RRT; ``bitrrt``
-    solves the users' scenes T-RRT does not, and its missions flew on three ArduCopter SITL
-    autopilots as safely as T-RRT's (19 of 19 each, BENCHMARKS.md "Home height"), but its
-    paths keep less thrust margin: BENCHMARKS.md "Planner v2")."""
+    """Which planner, with which parameters (default: ``bitrrt``, which solves the users'
+    scenes T-RRT does not, and whose polished paths beat T-RRT's on every margin of Fig. 6
+    and on avgC where T-RRT solves: BENCHMARKS.md "Planner v2"; in scenes with triangle
+    meshes, which bitrrt does not check, the default is ``trrt``, the paper's T-RRT)."""
 
     # Finite numbers only; seeds and counts are integers, not booleans or strings.
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     algorithm: Algorithm = Field(
-        "trrt",
-        description="trrt (default: the paper's T-RRT), bitrrt (bidirectional, for narrow "
-        "passages and whole-workspace bounds; primitive shapes only, and its paths keep less "
-        "thrust margin: README, Known limitations), rrt, or OMPL's peers",
+        "bitrrt",
+        description="bitrrt (default; trrt in scenes with triangle meshes, which bitrrt "
+        "does not check), trrt (the paper's T-RRT), rrt, or OMPL's peers",
     )
     seed: Seed = Field(0, description="random seed: same seed, same path")
     time_budget: float = Field(60.0, gt=0, le=86_400, description="planning time limit [s]")
@@ -69,11 +69,11 @@ class PlannerOptions(BaseModel):
     smoothing_attempts: int = Field(
         100, ge=0, le=100_000, strict=True, description="random shortcuts"
     )
-    polish: bool = Field(
-        False,
-        description="reshape the formation at the waypoints to raise the path's least "
-        "thrust margin (flycrane/planning/formation_polish.py); off by default: a polished "
-        "Puzzle path flew into the slab on SITL (README, Known limitations)",
+    polish: bool | None = Field(
+        None,
+        description="reshape the formation a little at the waypoints to raise the path's "
+        "least thrust margin and headroom (flycrane/planning/formation_polish.py); None: "
+        "on for bitrrt, off for the paper's planners and OMPL's",
     )
 
     @model_validator(mode="after")
@@ -92,6 +92,26 @@ class PlannerOptions(BaseModel):
                 "and runs its transition test on log c (flycrane/planning/bitrrt.py)"
             )
         return self
+
+    def algorithm_for(self, has_meshes: bool) -> Algorithm:
+        """The planner that runs in a scene with or without triangle meshes: bitrrt checks
+        primitive shapes only, so the default falls back to trrt (fcl checks meshes), and
+        bitrrt asked for by name is refused.
+
+        Raises
+        ------
+        MeshScene
+            bitrrt set explicitly and the scene has meshes.
+        """
+        if self.algorithm == "bitrrt" and has_meshes:
+            if "algorithm" in self.model_fields_set:
+                raise MeshScene()
+            return "trrt"
+        return self.algorithm
+
+    def polishes(self, algorithm: Algorithm) -> bool:
+        """Whether the path of ``algorithm`` (the one that runs) is polished."""
+        return algorithm == "bitrrt" if self.polish is None else self.polish
 
     def bitrrt_config(self) -> BiTRRTConfig:
         return BiTRRTConfig(
@@ -118,14 +138,15 @@ class PlannerOptions(BaseModel):
 
 
 def make_planner(space: ConfigurationSpace, validity: CompiledChecker, options: PlannerOptions):
-    """The planner object the options name (each has ``solve`` and ``name``).
+    """The planner object for :meth:`PlannerOptions.algorithm_for` the scene (each has
+    ``solve`` and ``name``).
 
     Raises
     ------
     MeshScene
-        bitrrt, which checks primitive shapes only, in a scene with triangle meshes.
+        bitrrt asked for by name in a scene with triangle meshes.
     """
-    algorithm = options.algorithm
+    algorithm = options.algorithm_for(validity.has_meshes)
     if algorithm == "bitrrt":
         return BiTRRT(space, validity, options.bitrrt_config())
     config = options.trrt_config()
@@ -158,11 +179,12 @@ def plan(
     progress: Callable[[PlanningProgress], None] | None = None,
     planner: Planner | None = None,
 ) -> PlanningOutcome:
-    """Plan within ``options.time_budget``, then smooth, polish (if asked) and measure the
-    path.
+    """Plan within ``options.time_budget``, then smooth, polish (:meth:`PlannerOptions.
+    polishes`) and measure the path.
     ``planner``: one built with settings the options do not carry (benchmarks of variants);
     by default :func:`make_planner`'s."""
     termination = TerminationCondition(options.time_budget, should_stop)
+    algorithm = options.algorithm_for(validity.has_meshes)
     planner = planner or make_planner(space, validity, options)
     result = planner.solve(start, goal, termination, seed=options.seed, progress=progress)
     if not result.status.solved:
@@ -172,11 +194,11 @@ def plan(
         result.path,
         space,
         validity,
-        ShortcutConfig(options.smoothing_attempts, cost_aware=options.algorithm in COST_AWARE),
+        ShortcutConfig(options.smoothing_attempts, cost_aware=algorithm in COST_AWARE),
         seed=options.seed,
         termination=TerminationCondition(float("inf"), should_stop),
     )
-    if options.polish:
+    if options.polishes(algorithm):
         smooth = polish_formation(
             smooth,
             space,

@@ -158,7 +158,7 @@ def test_an_unknown_scene_is_an_input_error_naming_the_scene_field():
 
 def test_bitrrt_asked_for_in_a_scene_with_meshes_is_refused_naming_the_field():
     """bitrrt checks primitive shapes only: asked for in a mesh scene it is refused at once;
-    the default, T-RRT, plans it (flycrane/planning/planners.py)."""
+    the default falls back to T-RRT, which plans it (flycrane/planning/planners.py)."""
     scene = load_scene("rescue")[0].model_dump(mode="json")
     scene["obstacles"].append(
         {"kind": "mesh", "name": "sign", "vertices": [[9, 4, 0], [10, 4, 0], [9, 5, 1]],
