@@ -12,11 +12,11 @@ $(BIN)/.installed: pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	@# Compile numba's kernels into its cache as part of the install (a minute or two on 2
 	@# cores, BENCHMARKS.md "flycrane plan end to end"): one plan of the Rescue runs every
-	@# kernel the main job needs, one bitrrt run those of bitrrt's loop, so a user's first
-	@# plan starts warm.
+	@# kernel the main job needs (bitrrt's loop among them), one T-RRT run those T-RRT adds
+	@# (the planner of scenes with meshes), so a user's first plan starts warm.
 	$(BIN)/flycrane plan --out $(VENV)/compile-kernels > /dev/null
-	$(BIN)/flycrane bench --scenes rescue --planners bitrrt --runs 1 --workers 1 \
-	  --out $(VENV)/compile-kernels/bitrrt > /dev/null
+	$(BIN)/flycrane bench --scenes rescue --planners trrt --runs 1 --workers 1 \
+	  --out $(VENV)/compile-kernels/trrt > /dev/null
 	touch $@
 
 # The main job on embedded defaults: plan the Rescue benchmark and export its missions.
