@@ -149,8 +149,9 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
     app = FastAPI(
         title="FlyCrane mission service",
         version="1.0.0",
-        description="Plans 6-D manipulation with a three-drone aerial crane (T-RRT over "
-        "cable statics) and exports synchronized MAVLink missions, MCAP logs and plots.",
+        description="Plans 6-D manipulation with a three-drone aerial crane (bidirectional "
+        "T-RRT over cable statics) and exports synchronized MAVLink missions, MCAP logs and "
+        "plots.",
         lifespan=lifespan,
         responses=error_responses(400),
     )

@@ -22,7 +22,7 @@ tension factors against three thrust factors, and its least value at a strained 
 Puzzle's tilted passage) lies at low alphas, where it buys slack the path cannot keep
 anyway (every path hovers at its endpoints, which bound its least margins) with thrust and
 headroom it can: on eq. 8 alone bitrrt's Puzzle paths kept 2.2 N of thrust margin where
-T-RRT's kept 3.2 N (BENCHMARKS.md, "Planner v2: the formation's objective").
+T-RRT's kept 3.2 N (BENCHMARKS.md, "Planner v2, the default").
 """
 
 from __future__ import annotations

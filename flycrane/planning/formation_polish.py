@@ -29,8 +29,10 @@ What it may move, and why so little:
 - each alpha at most ``reach`` (0.1 rad) from the planner's: unbounded, the polish took
   alphas to the ends of their range and reshaped the formation in the Puzzle's passage,
   and on three ArduCopter SITL autopilots 2 of 14 of those Puzzle missions put the load
-  into the slab, repeatably; with 0.1 rad none of 29 did (BENCHMARKS.md, "Planner v2: the
-  formation's objective").
+  into the slab, repeatably; with 0.1 rad none did, in two runs of 29 (BENCHMARKS.md,
+  "Planner v2, the default"). Even so, a third of the polished Puzzle missions have an
+  early leg (a drone's level leg slower than ArduCopter's speed floor) and their drones
+  drift further apart in flight than T-RRT's; the same section has the figures.
 
 A soft minimum (-tau log sum exp(-t / tau)) rather than the minimum: where several
 waypoints share a low-margin stretch, moving one of them cannot raise the stretch's hard
