@@ -6,7 +6,7 @@ Question: over every configuration that is statically feasible (finite cost c(q)
 wrench- and thrust-feasible, design.md s.5, default system carrying the corridor's crate)
 and free of self-collision, with the tilt and alphas in the corridor scene's bounds and any
 heading, what is the least width across the corridor (world y) of the collision bodies
-(:mod:`flycrane.extent`), and what does it cost to fit a given width?
+(:mod:`flycrane.world.extent`), and what does it cost to fit a given width?
 
 Method. The width does not depend on the position, so P stays at (0, 0, Z_CLEAR), clear of
 the ground, and scipy's differential evolution searches (phi, theta, sigma, alpha1..3).
@@ -41,12 +41,12 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import differential_evolution, minimize
 
-from flycrane.cost import cost_margin_factors
-from flycrane.extent import extent_from_configuration, width_from_configuration
+from flycrane.model.cost import cost_margin_factors
+from flycrane.model.statics import evaluate_statics
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import ValidityChecker
-from flycrane.scene import Box, SceneSpec
-from flycrane.statics import evaluate_statics
+from flycrane.world.extent import extent_from_configuration, width_from_configuration
+from flycrane.world.scene import Box, SceneSpec
 
 Z_CLEAR = 5.0  #: height of P [m]: the crate's bottom and every drone well above the ground
 WALLS = ("north wall", "south wall")  #: corridor.toml's obstacles

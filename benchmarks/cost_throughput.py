@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 
-from flycrane.cable_system import CableSystem
-from flycrane.cost import configuration_cost, cost_from_report
-from flycrane.statics import evaluate_statics
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.cost import configuration_cost, cost_from_report
+from flycrane.model.statics import evaluate_statics
 
 
 def sample(n: int, rng: np.random.Generator) -> np.ndarray:

@@ -3,10 +3,10 @@
     python benchmarks/dask_overhead.py [--runs 100] [--workers 2] [--rounds 2]
 
 Runs ``--runs`` seeds of T-RRT on the Rescue (``flycrane bench``'s jobs, through
-:func:`flycrane.benchmark.run_benchmark`) on a local pool of ``--workers`` processes and on a
-Dask ``LocalCluster`` of as many single-threaded worker processes on loopback, alternately,
-``--rounds`` times each, in one process; prints the wall time of each and the ratio of the
-medians (Dask / local), and checks that both gave the same result for every seed.
+:func:`flycrane.analysis.benchmark.run_benchmark`) on a local pool of ``--workers`` processes and on
+a Dask ``LocalCluster`` of as many single-threaded worker processes on loopback, alternately,
+``--rounds`` times each, in one process; prints the wall time of each and the ratio of the medians
+(Dask / local), and checks that both gave the same result for every seed.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import time
 
 from distributed import LocalCluster
 
-from flycrane.benchmark import run_benchmark
+from flycrane.analysis.benchmark import run_benchmark
 from flycrane.execution import DaskExecutor, local_executor
 
 

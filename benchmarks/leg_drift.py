@@ -5,8 +5,8 @@ drift over a flight as leg after leg adds its error.
 
 Per recorded SITL flight (``flycrane fly-sitl`` directories: ``flight.json``, the tlogs and
 each simulator's DataFlash log), every timed leg's duration on each vehicle's own clock
-(:func:`missions.leg_times.flight_record`, DataFlash times) against the plan's waypoint
-times (``tracks.json`` of the flown task). A drone starts each leg when it finishes the one
+(:func:`missions.flight_report.leg_times.flight_record`, DataFlash times) against the plan's
+waypoint times (``tracks.json`` of the flown task). A drone starts each leg when it finishes the one
 before, so its errors add up; the drift between drones after leg k is the spread of their
 summed errors. Prints the per-leg error by kind of leg and by planned duration, and the
 largest drift of each flight.
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from missions.leg_times import flight_record
+from missions.flight_report.leg_times import flight_record
 
 
 def legs(flight_dir: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -9,7 +9,7 @@ else of BiTRRTConfig; ``--trrt`` adds the paper's T-RRT. Every (scene, variant, 
 planned, smoothed and measured as ``flycrane bench`` does
 (:func:`flycrane.planning.planners.plan`), in a pool of worker processes; the table
 gives per scene and variant the solved runs, the mean average and maximum cost, and the
-least margins along the paths (:func:`flycrane.profiles.least_margins`: median and worst
+least margins along the paths (:func:`flycrane.analysis.profiles.least_margins`: median and worst
 run). BENCHMARKS.md ("Planner v2", "Against T-RRT") records the runs behind bitrrt's
 ``repair_share``.
 """
@@ -23,10 +23,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from flycrane.planning.bitrrt import BiTRRT
+from flycrane.analysis.profiles import least_margins, path_profile
+from flycrane.planning.algorithms.bitrrt import BiTRRT
 from flycrane.planning.planners import PlannerOptions, plan
 from flycrane.planning.problem import PlanningProblem
-from flycrane.profiles import least_margins, path_profile
 
 TRRT = "trrt"
 

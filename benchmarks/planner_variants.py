@@ -7,7 +7,7 @@ Each variant is a name and the BiTRRTConfig fields it changes. Every (scene, var
 runs the planner alone (no smoothing) after a warm-up run that compiles the kernels; the
 table gives solved runs, median and mean time (a timeout counts its budget), median
 attempts and the median time per attempt. BENCHMARKS.md ("Planner v2") records the runs
-behind each choice of :mod:`flycrane.planning.bitrrt`.
+behind each choice of :mod:`flycrane.planning.algorithms.bitrrt`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import json
 
 import numpy as np
 
-from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig
+from flycrane.planning.algorithms.bitrrt import BiTRRT, BiTRRTConfig
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.result import TerminationCondition
 

@@ -3,11 +3,11 @@ generation, and what does it buy in the least thrust margin?
 
     python benchmarks/polish_missions.py --scenes rescue puzzle --runs 30
 
-Each (scene, seed) is run as the service runs a task (:func:`missions.pipeline.run_task`,
+Each (scene, seed) is run as the service runs a task (:func:`missions.task.pipeline.run_task`,
 default mission options, so the planning clearance of the default position-error model)
 with ``planner.polish`` off and on; the table gives per scene and variant the tasks whose
 missions were generated ("done"), the others' reasons, and the median and worst least
-margins of the planned paths (:func:`flycrane.profiles.least_margins`). BENCHMARKS.md
+margins of the planned paths (:func:`flycrane.analysis.profiles.least_margins`). BENCHMARKS.md
 ("Formation polish") records the runs.
 """
 
@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
+from flycrane.analysis.profiles import least_margins, path_profile
 from flycrane.planning.planners import PlannerOptions
-from flycrane.profiles import least_margins, path_profile
-from missions.pipeline import run_task
-from missions.task import TaskSpec, resolve_task
+from missions.task.pipeline import run_task
+from missions.task.spec import TaskSpec, resolve_task
 
 
 def run(scene: str, polish: bool, seed: int, budget: float) -> tuple[str, str, tuple | None]:

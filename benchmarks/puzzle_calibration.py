@@ -22,7 +22,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 from flycrane.planning.planners import PlannerOptions, plan
 from flycrane.planning.problem import PlanningProblem
-from flycrane.scene import SCENES_DIR, SceneSpec, scene_from_dict
+from flycrane.world.scene import SCENES_DIR, SceneSpec, scene_from_dict
 
 SLAB_BOTTOM, SLAB_HALF_WIDTH = 4.0, 6.0
 

@@ -23,8 +23,8 @@ from pathlib import Path
 
 from flycrane.planning.planners import PlannerOptions
 from missions.options import MissionOptions
-from missions.pipeline import run_task
-from missions.task import TaskSpec
+from missions.task.pipeline import run_task
+from missions.task.spec import TaskSpec
 
 #: The seeds the SITL tests plan with (tests/missions/sitl/test_flights.py).
 SEEDS = {"rescue": 0, "puzzle": 2}

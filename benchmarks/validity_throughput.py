@@ -26,10 +26,10 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.cost import configuration_cost
+from flycrane.model.cost import configuration_cost
+from flycrane.planning.algorithms.trrt import STEP_FRACTION, TRRT
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.result import TerminationCondition
-from flycrane.planning.trrt import STEP_FRACTION, TRRT
 from flycrane.planning.validity import ValidityChecker
 
 

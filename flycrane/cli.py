@@ -18,13 +18,13 @@ from pathlib import Path
 
 import numpy as np
 
-from flycrane.cable_system import CableSystem
-from flycrane.cost import CostForm
 from flycrane.errors import FlyCraneError
-from flycrane.kinematics import as_configurations
-from flycrane.statics import evaluate_statics
-from flycrane.summary import statics_summary
-from flycrane.system import SystemSpec, load_system, save_system
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.cost import CostForm
+from flycrane.model.kinematics import as_configurations
+from flycrane.model.statics import evaluate_statics
+from flycrane.model.statics_summary import statics_summary
+from flycrane.model.system_spec import SystemSpec, load_system, save_system
 
 #: The configuration the quick start evaluates: hovering 5 m up, level, alphas at 1 rad.
 DEFAULT_CONFIGURATION = (0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
@@ -90,18 +90,18 @@ def _cmd_system(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from flycrane.benchmark import (
+    from flycrane.analysis.benchmark import (
         format_margins,
         format_table,
         run_benchmark,
         summarize,
         write_results,
     )
+    from flycrane.analysis.profiles import least_margins, path_profile, plot_profile_bands
     from flycrane.execution import executor_for
     from flycrane.planning.planners import PlannerOptions
     from flycrane.planning.problem import PlanningProblem
-    from flycrane.profiles import least_margins, path_profile, plot_profile_bands
-    from flycrane.scene import load_scene
+    from flycrane.world.scene import load_scene
 
     for scene in args.scenes:
         load_scene(scene)  # unknown names fail here, before any work starts

@@ -9,7 +9,7 @@ assume that its caller's disk is its own.
 
 Processes start with the *spawn* method: fork would copy the parent's threads and locks
 (the service runs an event loop and database threads), and OMPL must run in a fresh
-process (see :mod:`flycrane.planning.ompl_peers`).
+process (see :mod:`flycrane.planning.algorithms.ompl_peers`).
 
 Workers die with their parent, however it ends (kill -9 included): each watches the parent
 process through a pidfd (Linux >= 5.3; elsewhere by polling its parent's pid) and exits when

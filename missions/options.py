@@ -101,7 +101,7 @@ class MissionOptions(BaseModel):
         strict=True,
         description="[m] a set-down's slow vertical leg starts this much above the lowest "
         "pose that keeps the clearance, so that the path's last leg brakes there and not at "
-        "the clearance's edge (missions.vertical_legs)",
+        "the clearance's edge (missions.trajectory.vertical_legs)",
     )
     end: Literal["hold", "land"] = Field("hold", description="after the last waypoint")
     altitude_frame: Literal["relative", "amsl"] = "relative"

@@ -101,8 +101,8 @@ def _run(spec: JobSpec, store: TaskStore, task_dir: Path) -> JobOutcome:
     """Plan and export the task into ``task_dir``; its final status is written here only
     when ``task_dir`` is the task's own (``spec.task_dir``)."""
     from flycrane.planning.result import PlanningProgress
-    from missions.pipeline import run_task
-    from missions.task import TaskSpec, require_served_task
+    from missions.task.pipeline import run_task
+    from missions.task.spec import TaskSpec, require_served_task
 
     stop_flag, checked = False, -math.inf  # the first call reads the flag
     written_at, written_stage = 0.0, ""

@@ -1,6 +1,6 @@
 """Request and response schemas of the HTTP API (``XCreate`` / ``XPublic`` families).
 
-The task body itself is :class:`missions.task.TaskSpec`, shared with ``flycrane plan``.
+The task body itself is :class:`missions.task.spec.TaskSpec`, shared with ``flycrane plan``.
 """
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from flycrane.cost import CostForm
+from flycrane.model.cost import CostForm
+from flycrane.model.system_spec import SystemSpec
 from flycrane.quantities import Configuration
-from flycrane.system import SystemSpec
 from service.storage import TaskRecord, TaskStatus
 
 

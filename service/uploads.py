@@ -23,9 +23,9 @@ from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 from flycrane.errors import FieldProblem, InputError
-from missions.items import DroneMission
-from missions.mavlink import RetryPolicy
+from missions.export.items import DroneMission
 from missions.mavlink.errors import MavlinkError
+from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.transport import ConnectionSpec, VehicleLink, parse_connection
 from missions.mavlink.upload import Verification, upload_and_verify
 from service.errors import UploadNotAllowedError

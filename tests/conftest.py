@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from hypothesis import settings
 
-from flycrane.cable_system import CableSystem
-from flycrane.statics import evaluate_statics
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.statics import evaluate_statics
 from tests.postgres import PostgresServer, PostgresUnavailable
 
 # Timing is for benchmarks, not tests: the first call of a compiled kernel loads it from the

@@ -4,7 +4,7 @@ its largest cost.
 
 Why: Fig. 6's margins are bottlenecks, the least value along the path, which no
 per-configuration cost sees. bitrrt's repair already weighs the margins the endpoints
-bound (:mod:`flycrane.planning.extension_kernel`), but a smoothed path's long legs
+bound (:mod:`flycrane.planning.algorithms.extension_kernel`), but a smoothed path's long legs
 interpolate the formation between waypoints chosen for other poses, and its least margins
 fall where the pose strains the cables most (the Puzzle's tilted passage, the Rescue's
 yaw above the roofs).
@@ -48,10 +48,10 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-from flycrane.cable_system import CableSystem
 from flycrane.errors import FieldProblem, InputError
-from flycrane.metrics import METRICS_RESOLUTION
+from flycrane.model.cable_system import CableSystem
 from flycrane.planning.interfaces import Validity
+from flycrane.planning.metrics import METRICS_RESOLUTION
 from flycrane.planning.result import TerminationCondition
 from flycrane.planning.state_space import ConfigurationSpace
 
@@ -104,7 +104,7 @@ def _soft_minimum(t: NDArray[np.float64], softness: float) -> float:
 
 
 def _margins(system: CableSystem, q: NDArray[np.float64]) -> _Margins:
-    from flycrane.statics_kernel import compiled_statics  # numba import kept off the CLI path
+    from flycrane.model.statics_kernel import compiled_statics  # numba import kept off the CLI path
 
     f0, v, m, cost = compiled_statics(system, q)
     return _Margins(

@@ -10,7 +10,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.cable_system import CableSystem
+from flycrane.model.cable_system import CableSystem
 from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
 from flycrane.planning.validity_kernel import CompiledValidity
 

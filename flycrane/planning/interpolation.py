@@ -17,7 +17,7 @@ the three factors' quaternions::
 
 so back again ``theta = 2 atan2(|(x, y)|, |(w, z)|)``, ``sigma = 2 atan2(z, w)``,
 ``phi = sigma/2 - atan2(x, y)``; where the tilt axis is undefined (sin(theta/2) below 1e-12)
-phi is 0, the chart's choice in :func:`flycrane.kinematics.tilt_torsion_from_matrix`.
+phi is 0, the chart's choice in :func:`flycrane.model.kinematics.tilt_torsion_from_matrix`.
 
 The kernels are compiled (numba) because the planner's motion checks call them from
 compiled code; :func:`interpolate` and :func:`discretize` are their array front ends.

@@ -18,15 +18,15 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from flycrane.metrics import PathMetrics, path_metrics
-from flycrane.planning.bitrrt import BiTRRT, BiTRRTConfig, MeshScene
+from flycrane.planning.algorithms.bitrrt import BiTRRT, BiTRRTConfig, MeshScene
+from flycrane.planning.algorithms.ompl_peers import OmplPlanner
+from flycrane.planning.algorithms.trrt import TRRT, TRRTConfig
 from flycrane.planning.formation_polish import PolishConfig, polish_formation
 from flycrane.planning.interfaces import CompiledChecker, Planner
-from flycrane.planning.ompl_peers import OmplPlanner
+from flycrane.planning.metrics import PathMetrics, path_metrics
 from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
 from flycrane.planning.state_space import ConfigurationSpace
-from flycrane.planning.trrt import TRRT, TRRTConfig
 from flycrane.quantities import MAX_LENGTH, Seed
 
 Algorithm = Literal["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt", "ompl-rrtconnect"]
@@ -90,7 +90,7 @@ class PlannerOptions(BaseModel):
         if self.algorithm == "bitrrt" and unused:
             raise ValueError(
                 f"{', '.join(unused)}: options of trrt and rrt; bitrrt grows two trees "
-                "and runs its transition test on log c (flycrane/planning/bitrrt.py)"
+                "and runs its transition test on log c (flycrane/planning/algorithms/bitrrt.py)"
             )
         return self
 

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.cable_system import CableSystem
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.system_spec import SystemSpec
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.validity import ValidityChecker
-from flycrane.scene import SceneSpec, load_scene
-from flycrane.system import SystemSpec
+from flycrane.world.scene import SceneSpec, load_scene
 
 
 @dataclass(frozen=True)

@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.errors import FieldProblem, InputError
-from flycrane.metrics import METRICS_RESOLUTION, mechanical_work, resample_path
 from flycrane.planning.interfaces import Validity
+from flycrane.planning.metrics import METRICS_RESOLUTION, mechanical_work, resample_path
 from flycrane.planning.result import TerminationCondition
 from flycrane.planning.state_space import ConfigurationSpace
 

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from flycrane.cable_system import CableSystem
-from flycrane.kinematics import drone_positions_in_platform_frame, matrix_from_tilt_torsion
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.kinematics import drone_positions_in_platform_frame, matrix_from_tilt_torsion
 from flycrane.planning.interpolation import (
     discretize_into,
     geodesic_lengths,

@@ -4,8 +4,8 @@ OMPL's StateValidityChecker and MotionValidator roles for the FlyCrane. A config
 valid when it lies in the scene's sampling bounds, its cost is finite (wrench- and
 thrust-feasible, J non-singular) and no body collides. Every check runs in compiled code
 (:mod:`flycrane.planning.validity_kernel`): bounds, then statics (~1 us), then collisions
-of the primitive shapes (:mod:`flycrane.collision_kernel`, ~1-3 us). python-fcl
-(:class:`~flycrane.collision.CollisionChecker`) remains the reference the kernel is tested
+of the primitive shapes (:mod:`flycrane.world.collision_kernel`, ~1-3 us). python-fcl
+(:class:`~flycrane.world.collision.CollisionChecker`) remains the reference the kernel is tested
 against, the checker of triangle meshes (configurations the kernel finds free in a scene
 with meshes are checked by fcl as well), and the source of contact depths and clearances
 in messages.
@@ -27,16 +27,16 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from flycrane.cable_system import CableSystem
-from flycrane.collision import CollisionChecker, Contact
-from flycrane.cost import configuration_cost
 from flycrane.errors import FlyCraneError
-from flycrane.feasibility import Violation, violations
-from flycrane.kinematics import COORDINATES, as_configurations
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.cost import configuration_cost
+from flycrane.model.feasibility import Violation, violations
+from flycrane.model.kinematics import COORDINATES, as_configurations
+from flycrane.model.statics import evaluate_statics
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.validity_kernel import CompiledValidity
-from flycrane.scene import SceneSpec
-from flycrane.statics import evaluate_statics
+from flycrane.world.collision import CollisionChecker, Contact
+from flycrane.world.scene import SceneSpec
 
 #: Default motion-check step [state-space distance] (module docstring).
 MOTION_RESOLUTION = 0.05

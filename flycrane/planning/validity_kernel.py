@@ -20,13 +20,13 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from flycrane.cable_system import CableSystem
-from flycrane.collision_kernel import CompiledScene, collision_free_row, kinematic_arrays
-from flycrane.cost import CostForm
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.cost import CostForm
+from flycrane.model.statics_kernel import STATICS_WORK, statics_model, statics_row
 from flycrane.planning.interpolation import interpolate_into, segment_count
 from flycrane.planning.state_space import ConfigurationSpace
-from flycrane.scene import SceneSpec
-from flycrane.statics_kernel import STATICS_WORK, statics_model, statics_row
+from flycrane.world.collision_kernel import CompiledScene, collision_free_row, kinematic_arrays
+from flycrane.world.scene import SceneSpec
 
 
 @numba.njit(cache=True, nogil=True)

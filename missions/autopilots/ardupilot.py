@@ -38,7 +38,7 @@ from missions.autopilots.spline import AccelLimits, SpeedLimits, Tracking
 MIN_GROUND_SPEED = 0.20
 #: WPNAV_ACCEL and WPNAV_ACCEL_Z bounds (ArduCopter's parameter ranges) [m/s^2].
 ACCEL_RANGE = (0.5, 5.0)
-#: The order of the DO_CHANGE_SPEED items before a leg (``missions.builder``): ground,
+#: The order of the DO_CHANGE_SPEED items before a leg (``missions.export.builder``): ground,
 #: climb, descent speed; a limit gets an item when it changes by more than
 #: :data:`LIMIT_TOLERANCE` (relative).
 SPEED_ORDER = ("horizontal", "up", "down")

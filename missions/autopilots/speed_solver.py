@@ -20,7 +20,7 @@ descends at all (by a stored centimetre), with its horizontal limit held at the 
 floor rather than generous: where the spline levels off and the vertical limit lets go,
 the floor still bounds the speed. A level leg that should be slower is flown at 20 cm/s and
 reported as early (:attr:`FleetSpeeds.early`), and the flight plan merges it with a
-neighbour where it can (:mod:`missions.flight_plan`).
+neighbour where it can (:mod:`missions.trajectory.flight_plan`).
 """
 
 from __future__ import annotations

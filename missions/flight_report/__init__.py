@@ -20,13 +20,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from missions.export.formats import dumps
 from missions.flight_report.alignment import releases_from_logs, releases_from_sends
 from missions.flight_report.flight_log import write_flight_mcap
 from missions.flight_report.log import read_vehicle_log
 from missions.flight_report.plan import PlannedFlight
 from missions.flight_report.plot import plot_flight_report
 from missions.flight_report.report import FlightReport, flight_report
-from missions.formats import dumps
 
 #: What write_report saves, and the viewer's flown-path file.
 REPORT_FILE, PLOT_FILE, FLOWN_FILE = "report.json", "report.png", "flown.json"

@@ -1,5 +1,5 @@
 """A flight as an MCAP log for Foxglove: the load as the drones carried it, and the report's
-figures over time (``missions.mcap_log`` writes it).
+figures over time (``missions.export.mcap_log`` writes it).
 
 Topics (log time: the first release, on the flight log's clock, plus mission time):
 
@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
+from missions.export.mcap_log import LogInputs, write_mcap
 from missions.flight_report.plan import PlannedFlight
 from missions.flight_report.report import FlightReport
-from missions.mcap_log import LogInputs, write_mcap
-from missions.tracks import Track
+from missions.trajectory.tracks import Track
 
 #: The per-sample figures of each source, by the name they have in the log.
 FIGURES = ("error_in_time", "inter_drone_error", "slack_margin", "overload_margin",

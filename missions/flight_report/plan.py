@@ -1,6 +1,6 @@
 """What the drones were told to do, on mission time (zero at the release), read from a
 task's directory as ``flycrane plan`` wrote it: the autopilots' modelled motion
-(:class:`~missions.motion.DroneMotion`) and the dense plan of configurations on the same
+(:class:`~missions.trajectory.motion.DroneMotion`) and the dense plan of configurations on the same
 time."""
 
 from __future__ import annotations
@@ -13,12 +13,12 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.kinematics import drone_positions_from_configuration
+from flycrane.model.kinematics import drone_positions_from_configuration
 from flycrane.planning.validity import ValidityChecker
-from missions.motion import DroneMotion
-from missions.task import ResolvedTask, TaskSpec, resolve_task
-from missions.tracks import Track
-from missions.waypoints import planned_configurations
+from missions.task.spec import ResolvedTask, TaskSpec, resolve_task
+from missions.trajectory.motion import DroneMotion
+from missions.trajectory.tracks import Track
+from missions.trajectory.waypoints import planned_configurations
 
 #: Plan time between the samples progress is matched against [s].
 PROGRESS_STEP_S = 0.02
@@ -36,7 +36,7 @@ def _end_seqs(task_dir: Path) -> tuple[int, int, int]:
 @dataclass(frozen=True)
 class ContactWindow:
     """A set-down: between these mission times, touching these surfaces is the leg's
-    intended end (:mod:`missions.vertical_legs`); the window stays open to the end of the
+    intended end (:mod:`missions.trajectory.vertical_legs`); the window stays open to the end of the
     flight (``end`` inf), because the load stays on them through the final hold."""
 
     start: float

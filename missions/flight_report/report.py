@@ -43,14 +43,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.cost import cost_from_report
-from flycrane.direct_kinematics import configuration_from_drone_positions
-from flycrane.statics import evaluate_statics
+from flycrane.model.cost import cost_from_report
+from flycrane.model.direct_kinematics import configuration_from_drone_positions
+from flycrane.model.statics import evaluate_statics
 from missions.flight_report.alignment import Releases
 from missions.flight_report.log import Track, VehicleLog
 from missions.flight_report.plan import PROGRESS_STEP_S, PlannedFlight
-from missions.motion import forward_progress
 from missions.position_error import position_error_model
+from missions.trajectory.motion import forward_progress
 
 #: Reconstructions per second of mission time (the issue asks for >= 5 Hz).
 REPORT_RATE_HZ = 10.0

@@ -20,7 +20,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from missions.items import MavCmd
+from missions.export.items import MavCmd
 from missions.mavlink.errors import (
     CommandRejectedError,
     FleetError,

@@ -26,7 +26,7 @@ from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
-from missions.items import DroneMission
+from missions.export.items import DroneMission
 from missions.mavlink.commands import (
     ReleaseReport,
     StartReport,

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as dialect
 
-from missions.items import MavCmd, MavFrame, MissionItem, MissionType
+from missions.export.items import MavCmd, MavFrame, MissionItem, MissionType
 
 #: ``(MESSAGE_NAME, {field: value})``: one message, not yet encoded.
 MessageSpec = tuple[str, dict[str, Any]]

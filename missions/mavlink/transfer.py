@@ -26,7 +26,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
-from missions.items import MissionItem
+from missions.export.items import MissionItem
 from missions.mavlink.errors import (
     FinalAckTimeoutError,
     MavlinkTimeoutError,

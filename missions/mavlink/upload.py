@@ -30,7 +30,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from missions.items import DroneMission, MissionItem
+from missions.export.items import DroneMission, MissionItem
 from missions.mavlink.errors import (
     FinalAckTimeoutError,
     MavlinkError,

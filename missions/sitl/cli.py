@@ -15,8 +15,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from missions.export.formats import dumps
 from missions.flight_report import report_sitl_flight, write_report
-from missions.formats import dumps
 from missions.sitl.flight import SitlFlightOptions, fly_on_sitl
 from missions.sitl.netns import bring_up_loopback, isolated, isolated_command
 from missions.sitl.settings import SitlSettings

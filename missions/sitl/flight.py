@@ -43,16 +43,16 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from missions.formats import mission_from_json
+from missions.export.formats import mission_from_json
+from missions.export.items import DroneMission, MavCmd, MissionItem
+from missions.export.parameter_file import read_parameter_file
 from missions.geodesy import DEGREE_UNIT, ardupilot_altitude, enu_from_geodetic
-from missions.items import DroneMission, MavCmd, MissionItem
 from missions.mavlink.commands import ReleaseReport, release, set_message_interval
 from missions.mavlink.fleet import Fleet, on_every_vehicle
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.tlog import StretchedClock, TlogWriter
 from missions.mavlink.transport import VehicleLink
 from missions.options import GeodeticOrigin
-from missions.parameter_file import read_parameter_file
 from missions.sitl.errors import SitlError
 from missions.sitl.process import SitlGroup, SitlHome
 from missions.sitl.settings import SitlSettings

@@ -18,18 +18,18 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from flycrane.cable_system import CABLE_DRONE, CableSystem
-from flycrane.collision_geometry import platform_prism
 from flycrane.errors import FlyCraneError
-from flycrane.kinematics import (
+from flycrane.model.cable_system import CABLE_DRONE, CableSystem
+from flycrane.model.kinematics import (
     drone_positions_from_configuration,
     matrix_from_tilt_torsion,
     platform_points_from_configuration,
 )
-from flycrane.scene import Mesh, SceneSpec, Shape
-from missions.annotations import annotate
-from missions.task import TaskSpec, task_specs
-from missions.tracks import samples_at_rate
+from flycrane.world.bodies import platform_prism
+from flycrane.world.scene import Mesh, SceneSpec, Shape
+from missions.task.spec import TaskSpec, task_specs
+from missions.trajectory.annotations import annotate
+from missions.trajectory.tracks import samples_at_rate
 from missions.viewer.flown import FlownTrack, FlownTrackError, load_flown, reconstruct
 
 #: Name and version of the document's shape (docs/viewer.md).

@@ -14,7 +14,7 @@ positions; ``"sitl-estimate"`` or ``"telemetry"``: the autopilots' estimates). O
 ignored, so a report may carry more.
 
 The platform is not measured: it is reconstructed from the three drones with the direct
-kinematics (:mod:`flycrane.direct_kinematics`), which also says where that fails.
+kinematics (:mod:`flycrane.model.direct_kinematics`), which also says where that fails.
 """
 
 from __future__ import annotations
@@ -27,10 +27,10 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from flycrane.cable_system import CableSystem
-from flycrane.direct_kinematics import configuration_from_drone_positions
 from flycrane.errors import FieldProblem, InputError
-from flycrane.system import problems_from_validation_error
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.direct_kinematics import configuration_from_drone_positions
+from flycrane.model.system_spec import problems_from_validation_error
 
 #: The file a flight report leaves beside a task's artifacts.
 FLOWN_FILE = "flown.json"

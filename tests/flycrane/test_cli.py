@@ -59,7 +59,7 @@ def test_a_command_loads_only_its_own_plug_in():
         "import sys; from flycrane.cli import build_parser; "
         "build_parser(['plan', '--out', 'x']); "
         "print(sorted(m for m in ('missions.sitl.cli', 'missions.flight_report', "
-        "'missions.mavlink.mock_autopilot', 'service.cli') if m in sys.modules)); "
+        "'missions.mock.autopilot', 'service.cli') if m in sys.modules)); "
         "names = build_parser(['--help'])._subparsers._group_actions[0].choices; "
         "print(sorted(names))"
     )

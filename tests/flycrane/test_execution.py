@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from flycrane.benchmark import run_benchmark
+from flycrane.analysis.benchmark import run_benchmark
 from flycrane.execution import DaskExecutor, executor_for, local_executor, stop_executor
 
 #: Columns that depend on the seed only (times depend on the machine).

@@ -11,10 +11,10 @@ import math
 
 import pytest
 
-from flycrane.collision import CollisionChecker
 from flycrane.errors import InputError
-from flycrane.scene import Mesh, scene_from_dict
-from flycrane.system import system_from_dict
+from flycrane.model.system_spec import system_from_dict
+from flycrane.world.collision import CollisionChecker
+from flycrane.world.scene import Mesh, scene_from_dict
 
 HOVER = [0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
 BOUNDS = {"position_low": [-20, -20, 0], "position_high": [20, 20, 20]}

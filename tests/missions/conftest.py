@@ -10,13 +10,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from flycrane.cable_system import CableSystem
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.statics import evaluate_statics
 from flycrane.planning.state_space import ConfigurationSpace
-from flycrane.statics import evaluate_statics
-from missions.flight_plan import FlightPlan, plan_flight
 from missions.options import MissionOptions
-from missions.tracks import Track, track_from_path
-from missions.waypoints import WaypointPlan, reduce_to_waypoints
+from missions.trajectory.flight_plan import FlightPlan, plan_flight
+from missions.trajectory.tracks import Track, track_from_path
+from missions.trajectory.waypoints import WaypointPlan, reduce_to_waypoints
 
 #: A lift with a tilt, a yaw of 90 degrees and unequal alphas on the way: curved drone tracks.
 CURVED_PATH = np.array(

@@ -5,16 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from flycrane.cable_system import CableSystem
-from flycrane.kinematics import drone_positions_from_configuration
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.kinematics import drone_positions_from_configuration
 from missions.autopilots.ardupilot import ArduCopterSettings
 from missions.autopilots.spline import SpeedLimits
-from missions.builder import RELEASE_SEQ
-from missions.flight_plan import FlightPlan
-from missions.items import MavCmd
-from missions.motion import DroneMotion
+from missions.export.builder import RELEASE_SEQ
+from missions.export.items import MavCmd
 from missions.options import GeodeticOrigin
-from missions.waypoints import WaypointPlan
+from missions.trajectory.flight_plan import FlightPlan
+from missions.trajectory.motion import DroneMotion
+from missions.trajectory.waypoints import WaypointPlan
 
 WGS84_A, WGS84_F = 6378137.0, 1 / 298.257223563
 WGS84_E2 = WGS84_F * (2 - WGS84_F)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import httpx
 
-from flycrane.scene import load_scene
+from flycrane.world.scene import load_scene
 from tests.service.conftest import wait_finished, wait_status
 from tests.service.live import Server, start_server
 

@@ -18,7 +18,7 @@ from datetime import UTC, datetime, timedelta
 import pytest
 from fastapi.testclient import TestClient
 
-from flycrane.scene import SCENES_DIR, load_scene
+from flycrane.world.scene import SCENES_DIR, load_scene
 from service.app import create_app
 from service.settings import Settings
 from tests.service.conftest import TEST_HOST, running_service
@@ -346,7 +346,7 @@ def test_openapi_documents_the_real_responses(client):
 def test_a_cancel_while_generating_ends_cancelled(tmp_path, monkeypatch):
     """The job runs in a thread here (an in-process executor), so its pipeline can be held
     in "generating" until the cancel has been answered: no timing involved."""
-    import missions.pipeline
+    import missions.task.pipeline
     from tests.service.conftest import wait_finished
 
     generating, release = threading.Event(), threading.Event()
@@ -356,9 +356,9 @@ def test_a_cancel_while_generating_ends_cancelled(tmp_path, monkeypatch):
         progress("generating", None)
         generating.set()
         release.wait(60)
-        return missions.pipeline.TaskOutcome("done", planner_status="exact_solution")
+        return missions.task.pipeline.TaskOutcome("done", planner_status="exact_solution")
 
-    monkeypatch.setattr(missions.pipeline, "run_task", held_pipeline)
+    monkeypatch.setattr(missions.task.pipeline, "run_task", held_pipeline)
     settings = Settings(data_dir=tmp_path, allowed_hosts=(TEST_HOST,))
     with ThreadPoolExecutor(1) as pool, TestClient(create_app(settings, pool)) as client:
         task_id = client.post("/v1/tasks", json={"name": "held"}).json()["id"]
@@ -400,10 +400,10 @@ def test_health_tells_when_no_worker_pool_can_run_tasks(tmp_path):
 def test_concurrent_submissions_never_exceed_the_queue(tmp_path, monkeypatch):
     """Handlers run in parallel threads: of 8 simultaneous valid POSTs with room for 2,
     exactly 2 are accepted and 6 refused with 503 (the jobs are held, so none finishes)."""
-    import missions.pipeline
+    import missions.task.pipeline
 
     release = threading.Event()
-    monkeypatch.setattr(missions.pipeline, "run_task", lambda *a, **k: release.wait(60))
+    monkeypatch.setattr(missions.task.pipeline, "run_task", lambda *a, **k: release.wait(60))
     settings = Settings(data_dir=tmp_path, allowed_hosts=(TEST_HOST,), max_queued_tasks=2)
     with ThreadPoolExecutor(2) as pool, TestClient(create_app(settings, pool)) as client:
         with ThreadPoolExecutor(8) as senders:

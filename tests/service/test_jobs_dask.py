@@ -12,7 +12,7 @@ import tomllib
 import pytest
 from distributed import Client
 
-from flycrane.scene import SCENES_DIR
+from flycrane.world.scene import SCENES_DIR
 from service.jobs import WORKER_DIED
 from tests.service.conftest import running_service, wait_finished, wait_progress, wait_status
 

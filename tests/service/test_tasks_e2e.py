@@ -14,13 +14,16 @@ import pytest
 from mcap.reader import make_reader
 from pymavlink import mavwp
 
-from flycrane.scene import SCENES_DIR
-from missions.formats import mission_from_json
-from missions.mavlink import Fleet, MockAutopilot, MockConfig, RetryPolicy, SimClock
-from missions.mavlink.mock_config import Geodetic
-from missions.parameter_file import parse_parameter_file
+from flycrane.world.scene import SCENES_DIR
+from missions.export.formats import mission_from_json
+from missions.export.parameter_file import parse_parameter_file
+from missions.mavlink.fleet import Fleet
+from missions.mavlink.policy import RetryPolicy
+from missions.mock.autopilot import MockAutopilot, MockConfig
+from missions.mock.config import Geodetic
+from missions.mock.sim_clock import SimClock
 from tests.conftest import database_url_for
-from tests.missions.mavlink.conftest import free_udp_port
+from tests.missions.loopback import free_udp_port
 from tests.service.conftest import running_service, wait_finished, wait_progress, wait_status
 
 RESCUE = {"name": "rescue e2e", "planner": {"seed": 0, "time_budget": 60}}

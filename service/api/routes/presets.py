@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from flycrane.scene import list_scenes, load_scene
-from flycrane.system import SYSTEM_PRESETS
+from flycrane.model.system_spec import SYSTEM_PRESETS
+from flycrane.world.scene import list_scenes, load_scene
 
 router = APIRouter(prefix="/v1/presets", tags=["presets"])
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from fastapi import APIRouter, Depends
 
-from flycrane.cable_system import CableSystem
-from flycrane.statics import evaluate_statics
-from flycrane.summary import statics_summary
-from flycrane.system import system_preset
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.statics import evaluate_statics
+from flycrane.model.statics_summary import statics_summary
+from flycrane.model.system_spec import system_preset
 from service.deps import require_reader
 from service.errors import error_responses
 from service.schemas import StaticsCreate

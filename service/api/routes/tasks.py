@@ -16,7 +16,7 @@ from fastapi import APIRouter, Depends, Query
 from fastapi.responses import FileResponse, JSONResponse, Response
 
 from flycrane.errors import FieldProblem, InputError
-from missions.task import TaskSpec, require_served_task, resolve_task
+from missions.task.spec import TaskSpec, require_served_task, resolve_task
 from service.api.routes.view import bundle_view
 from service.deps import ServiceState, base_url, get_state, require_reader, require_token
 from service.errors import (
@@ -197,7 +197,7 @@ def get_bundle(task_id: str, state: ServiceState = Depends(get_state)) -> Respon
 
 
 def _stored_missions(state: ServiceState, record: TaskRecord) -> list:
-    from missions.formats import mission_from_json
+    from missions.export.formats import mission_from_json
 
     missions = []
     for k in (1, 2, 3):
@@ -213,7 +213,7 @@ def _stored_missions(state: ServiceState, record: TaskRecord) -> list:
 
 
 def _stored_parameters(state: ServiceState, record: TaskRecord) -> list[dict[str, float]]:
-    from missions.parameter_file import parse_parameter_file
+    from missions.export.parameter_file import parse_parameter_file
 
     parameters = []
     for k in (1, 2, 3):
@@ -250,7 +250,7 @@ def upload_task(
     vehicle. 502 if any vehicle failed (the others keep their mission); 409 if every mission
     is on board but a vehicle's parameters differ from the plan's (its timing holds only
     with them: load the ``.parm`` in the ground station and upload again)."""
-    from missions.mavlink import RetryPolicy
+    from missions.mavlink.policy import RetryPolicy
 
     record = _record(state, task_id)
     addresses = allowed_vehicles(body.vehicles, state.settings)

@@ -16,7 +16,7 @@ import html
 from fastapi import APIRouter, Depends, Query
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 
-from missions.task import TaskSpec
+from missions.task.spec import TaskSpec
 from missions.viewer import (
     ViewUnavailableError,
     served_page,

@@ -1,6 +1,6 @@
 """The formation polish: what it may change, what it must keep, and how far it gets.
 
-Margins are measured with the numpy statics (:func:`flycrane.statics.evaluate_statics`),
+Margins are measured with the numpy statics (:func:`flycrane.model.statics.evaluate_statics`),
 not the compiled kernel the polish optimizes with, on the path discretized at the metrics
 resolution; the optimum it reaches is held against a brute-force grid over the alphas.
 """
@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 
 from flycrane.errors import InputError
-from flycrane.metrics import METRICS_RESOLUTION
+from flycrane.model.statics import evaluate_statics
 from flycrane.planning.formation_polish import PolishConfig, polish_formation
+from flycrane.planning.metrics import METRICS_RESOLUTION
 from flycrane.planning.planners import PlannerOptions, plan
 from flycrane.planning.problem import PlanningProblem
-from flycrane.statics import evaluate_statics
 
 
 def least_margins(problem: PlanningProblem, path: np.ndarray) -> tuple[float, float, float, float]:

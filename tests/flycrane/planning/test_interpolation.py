@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
-from flycrane.kinematics import matrix_from_tilt_torsion
+from flycrane.model.kinematics import matrix_from_tilt_torsion
 from flycrane.planning.interpolation import interpolate
 from flycrane.planning.state_space import ConfigurationSpace
 

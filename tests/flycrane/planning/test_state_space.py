@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from flycrane.metrics import mechanical_work, path_metrics, resample_path
 from flycrane.planning.interpolation import interpolate, wrap_angle
+from flycrane.planning.metrics import mechanical_work, path_metrics, resample_path
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
 from flycrane.planning.state_space import ConfigurationSpace
 from tests.flycrane.planning.toy_validity import ToyValidity

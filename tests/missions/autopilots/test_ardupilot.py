@@ -11,8 +11,8 @@ import pytest
 
 from missions.autopilots.ardupilot import changed_limits, limits_at_setup
 from missions.autopilots.spline import AccelLimits, HermiteLeg, SpeedLimits, entry_speed_limit
+from missions.export.items import MavCmd
 from missions.geodesy import DEGREE_UNIT, ardupilot_altitude, enu_from_geodetic
-from missions.items import MavCmd
 from missions.options import GeodeticOrigin
 
 DATA = Path(__file__).parents[1] / "data" / "sitl_leg_times.json"

@@ -21,10 +21,10 @@ import pytest
 from mcap.reader import make_reader
 
 from flycrane.planning.planners import PlannerOptions
-from missions.mavlink import Imperfections
-from missions.task import TaskSpec
-from tests.missions.test_replay import Exported, export, fly, late_drones
-from tests.missions.test_replay import rescue as rescue
+from missions.mock.config import Imperfections
+from missions.task.spec import TaskSpec
+from tests.missions.mock.test_replay import Exported, export, fly, late_drones
+from tests.missions.mock.test_replay import rescue as rescue
 
 from ..mavlink.conftest import no_leaked_threads  # noqa: F401 (autouse fixture)
 

@@ -17,14 +17,13 @@ from mavsdk.plugins.mission_raw import MissionItem as RawItem
 from mavsdk.plugins.mission_raw import MissionRaw
 from mavsdk.plugins.mission_raw_server import MissionRawServer, MissionRawServerResult
 
-from missions.items import MavCmd, MavFrame, MissionItem
+from missions.export.items import MavCmd, MavFrame, MissionItem
 from missions.mavlink.messages import as_sent
-from missions.mavlink.mock_autopilot import MockConfig
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.transport import VehicleLink
 from missions.mavlink.upload import Verification, upload_and_verify
-
-from .conftest import HOME, free_udp_port, waypoint_mission
+from missions.mock.autopilot import MockConfig
+from tests.missions.loopback import HOME, free_udp_port, waypoint_mission
 
 FIELDS = (
     "seq",

@@ -8,7 +8,7 @@ import struct
 from hypothesis import given
 from hypothesis import strategies as st
 
-from missions.items import MavCmd, MavFrame, MissionItem, MissionType
+from missions.export.items import MavCmd, MavFrame, MissionItem, MissionType
 from missions.mavlink.messages import (
     Endpoint,
     as_sent,

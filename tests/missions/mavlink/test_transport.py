@@ -9,8 +9,7 @@ import pytest
 from missions.mavlink.errors import ConnectionStringError, MavlinkTimeoutError
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.transport import ConnectionSpec, VehicleLink, parse_connection
-
-from .conftest import free_udp_port
+from tests.missions.loopback import free_udp_port
 
 
 @pytest.mark.parametrize(

@@ -8,17 +8,16 @@ from dataclasses import replace
 
 import pytest
 
-from missions.items import MavCmd, MavFrame, MissionItem
+from missions.export.items import MavCmd, MavFrame, MissionItem
 from missions.mavlink.errors import FleetError, MissionTransferError, MissionVerificationError
 from missions.mavlink.fleet import Fleet, upload_to_vehicles
 from missions.mavlink.messages import ardupilot_readback, as_sent, float32, item_difference
-from missions.mavlink.mock_autopilot import MockConfig
-from missions.mavlink.sim_clock import SimClock
 from missions.mavlink.transfer import download_mission
 from missions.mavlink.transport import VehicleLink
 from missions.mavlink.upload import Verification, upload_and_verify, verify_mission
-
-from .conftest import HOME, waypoint_mission
+from missions.mock.autopilot import MockConfig
+from missions.mock.sim_clock import SimClock
+from tests.missions.loopback import HOME, waypoint_mission
 
 
 def comparable(items):

@@ -26,12 +26,12 @@ import pytest
 from flycrane.planning.planners import PlannerOptions
 from missions.flight_report.plan import PlannedFlight
 from missions.options import MissionOptions
-from missions.pipeline import run_task
 from missions.position_error import PRESETS
 from missions.sitl.netns import namespaces_available
 from missions.sitl.process import alive
 from missions.sitl.settings import SitlSettings
-from missions.task import TaskSpec
+from missions.task.pipeline import run_task
+from missions.task.spec import TaskSpec
 
 SETTINGS = SitlSettings()
 NAMESPACES = namespaces_available()

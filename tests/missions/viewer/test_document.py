@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from flycrane.system import SystemSpec
-from missions.pipeline import run_task
-from missions.task import task_from_dict
+from flycrane.model.system_spec import SystemSpec
+from missions.task.pipeline import run_task
+from missions.task.spec import task_from_dict
 from missions.viewer import FLOWN_FILE, VIEW_FORMAT, ViewUnavailableError, view_document
 
 G = 9.81

@@ -1,0 +1,1 @@
+"""The FlyCrane's model: system, kinematics, statics, feasibility and cost."""

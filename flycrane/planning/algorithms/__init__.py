@@ -1,0 +1,1 @@
+"""The planners: T-RRT, bitrrt and their kernels, OMPL's peers."""

@@ -1,0 +1,327 @@
+"""Compiled pieces of a tree extension: embedding, alpha repair, extend, partial advance.
+
+One extension (:func:`extend`) is one compiled call: step from the near node towards a
+target along the local path, repair the formation (the alphas) at the new pose, check the
+new configuration and the motion to it (:mod:`flycrane.planning.validity_kernel`).
+
+Alpha repair. For a platform pose the three alphas are redundant: they change the drones'
+positions, hence the cost and the drones' and cables' collisions, not the load's. Starting
+from the near node's alphas (the extension's warm start), a few steps of descent on the
+repair's objective over the alphas, with finite differences and backtracking, move them
+towards its least value that is collision-free (an invalid configuration counts as +inf,
+so the descent stops at obstacles and infeasibility). It is bounded (ALPHA_STEP per step,
+REPAIR_STEPS steps) so each extension moves the alphas by little, and the motion check
+covers the change.
+
+The repair's objective is ``log c + w log c_cap`` (:func:`repair_objective`): eq. 8, plus
+eq. 8 again with each of its factors capped at the least factor of its kind (slack,
+overload, thrust) that the path's two endpoints have; ``w`` is
+:attr:`~flycrane.planning.algorithms.bitrrt.BiTRRTConfig.margin_weight`. So a margin counts (1 + w)
+times below what the endpoints keep and once above it. Why: eq. 8 multiplies twelve
+tension factors against three thrust factors, and its least value at a strained pose (the
+Puzzle's tilted passage) lies at low alphas, where it buys slack the path cannot keep
+anyway (every path hovers at its endpoints, which bound its least margins) with thrust and
+headroom it can: on eq. 8 alone bitrrt's Puzzle paths kept 2.2 N of thrust margin where
+T-RRT's kept 3.2 N (BENCHMARKS.md, "Planner v2, the default").
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from flycrane.model.statics_kernel import statics_row
+from flycrane.planning.algorithms.neighbours import EMBEDDING
+from flycrane.planning.interpolation import geodesic_length, interpolate_into
+from flycrane.planning.validity_kernel import (
+    in_bounds,
+    motion_check,
+    motion_last_valid,
+    state_check,
+)
+from flycrane.world.collision_kernel import drone_free, pose_free
+
+#: Repair: finite-difference step and largest step of each descent step [rad].
+ALPHA_PROBE = 0.01
+ALPHA_STEP = 0.15
+#: Repair: descent steps per extension.
+REPAIR_STEPS = 2
+#: extend's outcomes: BLOCKED means a valid new configuration the straight motion cannot
+#: reach (see :func:`reshape_first`).
+FAILED, ADVANCED, REACHED, BLOCKED = 0, 1, 2, 3
+
+
+@numba.njit(cache=True, nogil=True)
+def embed_into(q, weights, out) -> None:
+    """E(q) of :meth:`ConfigurationSpace.embed` into out (18,)."""
+    phi, theta, sigma = q[3], q[4], q[5]
+    cp, sp, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+    cs, ss = math.cos(sigma - phi), math.sin(sigma - phi)
+    scale = weights[0] / math.sqrt(2.0)
+    out[0], out[1], out[2] = q[0], q[1], q[2]
+    out[3] = scale * (cp * ct * cs - sp * ss)
+    out[4] = scale * (-cp * ct * ss - sp * cs)
+    out[5] = scale * cp * st
+    out[6] = scale * (sp * ct * cs + cp * ss)
+    out[7] = scale * (-sp * ct * ss + cp * cs)
+    out[8] = scale * sp * st
+    out[9] = scale * -st * cs
+    out[10] = scale * st * ss
+    out[11] = scale * ct
+    for k in range(3):
+        out[12 + k] = weights[1] * math.cos(q[6 + k])
+        out[15 + k] = weights[1] * math.sin(q[6 + k])
+
+
+@numba.njit(cache=True, nogil=True)
+def repair_objective(smodel, f0, v, m, caps) -> float:
+    """The repair's objective (module docstring) of a feasible configuration from its
+    statics, :func:`statics_row`'s f0 (6,), v (6,), m (3,): log c + caps[3] x log c_cap,
+    c_cap being eq. 8 with its slack, overload and thrust factors capped at caps[0],
+    caps[1] and caps[2]. The planner's checker evaluates eq. 8's normalized form, whose
+    factors these are."""
+    thrust_max, f_lo, f_hi = smodel[7], smodel[8], smodel[9]
+    log_cost, log_capped = 0.0, 0.0
+    for i in range(6):
+        span = f_hi[i] - f_lo[i]
+        slack = (f0[i] - v[i] - f_lo[i]) / span
+        overload = (f_hi[i] - f0[i] - v[i]) / span
+        log_cost -= math.log(slack) + math.log(overload)
+        log_capped -= math.log(min(slack, caps[0])) + math.log(min(overload, caps[1]))
+    for k in range(3):
+        thrust = (thrust_max[k] - m[k]) / thrust_max[k]
+        log_cost -= math.log(thrust)
+        log_capped -= math.log(min(thrust, caps[2]))
+    return log_cost + caps[3] * log_capped
+
+
+@numba.njit(cache=True, nogil=True)
+def _objective(q, model, work, caps) -> float:
+    """The repair's objective of q, +inf where q is invalid."""
+    if not state_check(q, model, work, True)[1]:
+        return math.inf
+    return repair_objective(model[1], work[1], work[2], work[3], caps)
+
+
+@numba.njit(cache=True, nogil=True)
+def _statics_objective(q, model, work, caps) -> float:
+    """The repair's objective without the collision check: the probes of a descent only
+    need the slope."""
+    bounds, smodel = model[0], model[1]
+    if not in_bounds(q, bounds):
+        return math.inf
+    cost = statics_row(q, smodel, work[1], work[2], work[3], work[0])
+    if not cost < math.inf:
+        return math.inf
+    return repair_objective(smodel, work[1], work[2], work[3], caps)
+
+
+@numba.njit(cache=True, nogil=True)
+def repair_alphas(q, model, work, gradient, caps) -> float:
+    """Descend the repair's objective over q's alphas in place (module docstring); returns
+    the objective at the end (+inf if q is invalid and no step found a valid
+    configuration). ``caps``: :func:`repair_objective`'s. The slope is probed
+    on the statics alone (a collision check costs 2-3 times the statics); every step taken
+    is checked whole, so a step into an obstacle is refused and shortened."""
+    bounds = model[0]
+    low, high = bounds[7], bounds[8]
+    value = _objective(q, model, work, caps)
+    if not value < math.inf:
+        return value
+    for _ in range(REPAIR_STEPS):
+        norm = 0.0
+        for k in range(3):
+            saved = q[6 + k]
+            probe = ALPHA_PROBE if saved + ALPHA_PROBE <= high else -ALPHA_PROBE
+            q[6 + k] = saved + probe
+            shifted = _statics_objective(q, model, work, caps)
+            q[6 + k] = saved
+            # A probe into infeasibility: push away from it.
+            slope = (shifted - value) / probe if shifted < math.inf else 1e3 * np.sign(probe)
+            gradient[k] = slope
+            norm += slope * slope
+        norm = math.sqrt(norm)
+        if norm == 0.0:
+            break
+        step = ALPHA_STEP
+        improved = False
+        for _ in range(4):  # backtracking
+            for k in range(3):
+                gradient[3 + k] = q[6 + k]
+                q[6 + k] = min(high, max(low, q[6 + k] - step * gradient[k] / norm))
+            trial = _objective(q, model, work, caps)
+            if trial < value:
+                value, improved = trial, True
+                break
+            for k in range(3):
+                q[6 + k] = gradient[3 + k]
+            step *= 0.5
+        if not improved:
+            break
+    return value
+
+
+@numba.njit(cache=True, nogil=True)
+def _choose_alphas(near, target, out, model, work, scratch, caps) -> bool:
+    """Start the repair from the valid one of least objective of: the near node's alphas
+    (the warm start), the interpolated ones (out's), the target's; if none is valid,
+    :func:`choose_formation` near the near node's. False if nothing is valid. The
+    candidates are ranked by their statics and checked for collisions in that order, so
+    usually one collision check decides."""
+    candidates = scratch[6:15].reshape((3, 3))  # rows: near's, out's, target's alphas
+    costs = np.empty(3)
+    for k in range(3):
+        candidates[0, k], candidates[1, k] = near[6 + k], out[6 + k]
+        candidates[2, k] = target[6 + k]
+    for c in range(3):
+        for k in range(3):
+            out[6 + k] = candidates[c, k]
+        costs[c] = _statics_objective(out, model, work, caps)
+    for c in np.argsort(costs):
+        if not costs[c] < math.inf:
+            break
+        for k in range(3):
+            out[6 + k] = candidates[c, k]
+        if state_check(out, model, work, True)[1]:
+            return True
+    return choose_formation(out, near[6:9], model, work, scratch, caps)
+
+
+#: Formation choice: alphas per drone scanned, and nearest free ones combined per drone.
+FORMATION_GRID = 16
+FORMATION_NEAREST = 3
+
+
+@numba.njit(cache=True, nogil=True)
+def choose_formation(q, preferred, model, work, scratch, caps) -> bool:
+    """Alphas for q's pose when none of the usual candidates is valid (module docstring):
+    per drone, the FORMATION_NEAREST alphas of a FORMATION_GRID scan nearest to
+    ``preferred`` (3,) at which that drone and its cables touch nothing; of their
+    combinations, the valid one of least objective goes into q. False if none is valid."""
+    bounds, _, kin, scene, _ = model
+    collision_work = work[4:10]
+    low, high = bounds[7], bounds[8]
+    if not pose_free(q, kin, scene, collision_work):
+        return False
+    chosen = scratch[12:18]  # per drone: count of free alphas found, then the alphas
+    options = np.empty((3, FORMATION_NEAREST))
+    counts = np.zeros(3, dtype=np.int64)
+    for k in range(3):
+        free = np.empty(FORMATION_GRID)
+        distance = np.empty(FORMATION_GRID)
+        n = 0
+        for g in range(FORMATION_GRID):
+            q[6 + k] = low + (high - low) * g / (FORMATION_GRID - 1)
+            if drone_free(q, k, kin, scene, collision_work):
+                free[n] = q[6 + k]
+                distance[n] = abs(q[6 + k] - preferred[k])
+                n += 1
+        if n == 0:
+            return False
+        order = np.argsort(distance[:n])
+        counts[k] = min(n, FORMATION_NEAREST)
+        for m in range(counts[k]):
+            options[k, m] = free[order[m]]
+    best = math.inf
+    for i in range(counts[0]):
+        for j in range(counts[1]):
+            for m in range(counts[2]):
+                q[6], q[7], q[8] = options[0, i], options[1, j], options[2, m]
+                value = _objective(q, model, work, caps)
+                if value < best:
+                    best = value
+                    chosen[0], chosen[1], chosen[2] = q[6], q[7], q[8]
+    q[6], q[7], q[8] = chosen[0], chosen[1], chosen[2]
+    return best < math.inf
+
+
+#: extend's repair modes: never; always (towards samples, whose alphas mean nothing);
+#: short of the target only (towards another tree's node, which must be reached exactly).
+NO_REPAIR, REPAIR, REPAIR_UNLESS_REACHED = 0, 1, 2
+
+
+@numba.njit(cache=True, nogil=True)
+def extend(
+    near, target, step, repair, partial, resolution, model, work, out, caps
+) -> tuple[int, float]:
+    """One extension from ``near`` towards ``target`` into ``out`` (9,): (outcome, cost).
+
+    The new configuration lies ``step`` (chordal) along the local path, or is the target if
+    closer; its alphas are repaired (warm start: the near node's alphas; ``caps``:
+    :func:`repair_objective`'s) as ``repair`` says. REACHED means ``out`` equals the
+    target. Where the new configuration is invalid and ``partial`` > 0, ``out`` is the last
+    valid configuration towards it (:func:`advance_partial`); where it is valid but the
+    motion to it is not, the outcome is BLOCKED and the caller chooses
+    (:func:`reshape_first`, :func:`advance_partial`).
+    """
+    weights = model[4]
+    scratch = work[-1]
+    ea, eb = scratch[0, :EMBEDDING], scratch[1, :EMBEDDING]
+    embed_into(near, weights, ea)
+    embed_into(target, weights, eb)
+    distance = 0.0
+    for a in range(EMBEDDING):
+        distance += (ea[a] - eb[a]) ** 2
+    distance = math.sqrt(distance)
+    reached = distance <= step
+    interpolate_into(near, target, 1.0 if reached else step / distance, out)
+    if repair == REPAIR or (repair == REPAIR_UNLESS_REACHED and not reached):
+        reached = False
+        if not _choose_alphas(near, target, out, model, work, scratch[2], caps):
+            return FAILED, math.inf
+        if not repair_alphas(out, model, work, scratch[2], caps) < math.inf:
+            return FAILED, math.inf
+    cost, valid = state_check(out, model, work, True)
+    if valid:
+        if motion_check(near, out, resolution, model, work, True, False):
+            return (REACHED if reached else ADVANCED), cost
+        return BLOCKED, cost
+    if partial > 0.0:
+        cost = advance_partial(near, out, partial, resolution, model, work)
+        if cost < math.inf:
+            return ADVANCED, cost
+    return FAILED, math.inf
+
+
+@numba.njit(cache=True, nogil=True)
+def advance_partial(near, out, least, resolution, model, work) -> float:
+    """Move ``out`` back along the local path near -> out to its last valid configuration
+    (at the motion's discretization); that configuration's cost if it lies at least
+    ``least`` (path length) from near and the motion to it is valid, else +inf and ``out``
+    means nothing. Where a passage is narrower than the step, the part of an extension
+    that fits is progress the full step would lose."""
+    weights = model[4]
+    length = geodesic_length(near, out, weights[0], weights[1])
+    t = motion_last_valid(near, out, resolution, model, work, True)
+    if t * length < least:
+        return math.inf
+    end = work[-1][2, :9]
+    for k in range(9):
+        end[k] = out[k]
+    interpolate_into(near, end, t, out)
+    cost, valid = state_check(out, model, work, True)
+    # The shorter motion is discretized at other points: check it as every motion is.
+    if not (valid and motion_check(near, out, resolution, model, work, True, False)):
+        return math.inf
+    return cost
+
+
+@numba.njit(cache=True, nogil=True)
+def reshape_first(near, new, resolution, model, work, middle) -> float:
+    """The two motions near -> middle -> new, where middle is the near pose with new's
+    alphas: the formation changes in place, then the pose moves. Returns middle's cost if
+    middle and both motions are valid, else +inf. Where a passage only fits another
+    formation (a corridor), the straight motion enters it still reshaping; this one
+    reshapes before it moves."""
+    for k in range(9):
+        middle[k] = near[k] if k < 6 else new[k]
+    cost, valid = state_check(middle, model, work, True)
+    if not (
+        valid
+        and motion_check(near, middle, resolution, model, work, True, False)
+        and motion_check(middle, new, resolution, model, work, True, False)
+    ):
+        return math.inf
+    return cost

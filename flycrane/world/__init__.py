@@ -1,0 +1,1 @@
+"""The world the crane moves in: scenes, collision bodies and checks."""

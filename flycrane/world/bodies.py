@@ -1,0 +1,280 @@
+"""Collision bodies of a scene as fcl objects plus oriented boxes for the broad phase.
+
+Every shape (obstacle, payload part, the platform) becomes a :class:`Body`: the fcl
+geometry that decides contacts exactly, and an oriented bounding box (centre, rotation,
+half sizes, in its parent frame) from which vectorized code gets world-aligned boxes for
+many configurations at once. Only pairs whose boxes overlap reach fcl.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import NoReturn
+
+import fcl
+import numpy as np
+from numpy.typing import NDArray
+
+from flycrane.errors import FieldProblem, InputError
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.kinematics import matrix_from_tilt_torsion
+from flycrane.quantities import MAX_LENGTH
+from flycrane.world.scene import Box, Cylinder, Mesh, SceneSpec, Sphere
+
+#: Largest extent of a usable body [m]: a shape within MAX_LENGTH of its frame's origin,
+#: posed within MAX_LENGTH of the world's. Beyond it the broad phase's squared distances lose
+#: the precision that decides a contact, and at overflow a body is never checked at all.
+USABLE_EXTENT = 4.0 * MAX_LENGTH
+
+
+class CollisionBodyError(InputError):
+    """A shape the collision checker cannot use (not finite, too large, no triangle).
+
+    Raised instead of building a checker that would silently never see the body.
+    """
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """One rigid collision shape: fcl object and its oriented box in the parent frame."""
+
+    name: str
+    geometry: fcl.CollisionGeometry
+    center: NDArray[np.float64]  #: (3,) shape origin in the parent frame
+    rotation: NDArray[np.float64]  #: (3, 3) shape axes in the parent frame
+    box_center: NDArray[np.float64]  #: (3,) bounding-box centre, parent frame
+    half_size: NDArray[np.float64]  #: (3,) bounding-box half sizes along ``rotation``'s axes
+    obstacle: fcl.CollisionObject | None = None  #: placed once, for static bodies
+
+
+def _bvh(vertices: NDArray, faces: NDArray) -> fcl.BVHModel:
+    model = fcl.BVHModel()
+    model.beginModel(len(vertices), len(faces))
+    model.addSubModel(vertices, faces)
+    model.endModel()
+    return model
+
+
+def body_from_shape(
+    shape: Box | Cylinder | Sphere | Mesh, name: str, base_dir: Path | None, field: str = ""
+) -> Body:
+    """A :class:`Body` for a scene shape (pose relative to its parent frame).
+
+    Raises
+    ------
+    CollisionBodyError
+        If the checker could not use the body (:func:`require_usable`); ``field`` names the
+        shape in the error (e.g. ``scene.obstacles[2]``).
+    """
+    rotation = matrix_from_tilt_torsion(np.array(shape.rotation))
+    center = np.array(shape.center, dtype=float)
+    offset = np.zeros(3)
+    if isinstance(shape, Box):
+        geometry, half = fcl.Box(*shape.size), np.array(shape.size) / 2
+    elif isinstance(shape, Cylinder):
+        geometry = fcl.Cylinder(shape.radius, shape.height)
+        half = np.array([shape.radius, shape.radius, shape.height / 2])
+    elif isinstance(shape, Sphere):
+        geometry, half = fcl.Sphere(shape.radius), np.full(3, shape.radius)
+    else:
+        vertices, faces = shape.triangles(base_dir)
+        require_triangles(vertices, faces, field or name, name)
+        geometry = _bvh(vertices, faces)
+        low, high = vertices.min(axis=0), vertices.max(axis=0)
+        offset, half = (low + high) / 2, (high - low) / 2
+    body = Body(name, geometry, center, rotation, center + rotation @ offset, half)
+    require_usable(body, field or name)
+    return body
+
+
+def require_triangles(vertices: NDArray, faces: NDArray, field: str, name: str) -> None:
+    """Refuse a mesh with a non-finite vertex or no triangle of positive area: fcl would
+    never report a contact with it."""
+    vertices = np.asarray(vertices, dtype=float)
+    faces = np.asarray(faces, dtype=int).reshape(-1, 3)
+    if not np.all(np.isfinite(vertices)):
+        _unusable(field, name, "a vertex is not finite")
+    if len(faces) and faces.min() >= 0 and faces.max() < len(vertices):
+        corners = vertices[faces]
+        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        if np.any(np.linalg.norm(normals, axis=1) > 0.0):
+            return
+    _unusable(field, name, "it has no triangle of positive area")
+
+
+def require_usable(body: Body, field: str) -> None:
+    """Refuse a body whose pose or box is not finite or extends beyond USABLE_EXTENT."""
+    numbers = np.concatenate([body.center, body.rotation.ravel(), body.box_center, body.half_size])
+    if not np.all(np.isfinite(numbers)):
+        _unusable(field, body.name, "its pose or size is not finite")
+    if np.abs(body.box_center).max() + body.half_size.max() > USABLE_EXTENT:
+        _unusable(field, body.name, f"it extends beyond {USABLE_EXTENT:g} m from the origin")
+
+
+def _unusable(field: str, name: str, reason: str) -> NoReturn:
+    raise CollisionBodyError(
+        [FieldProblem(field, f"{name}: the collision checker cannot use it: {reason}")]
+    )
+
+
+def platform_prism(system: CableSystem, thickness: float) -> tuple[NDArray, NDArray]:
+    """The platform as a thin prism through the convex hull of the points B'_i (in z'):
+    vertices (2 n, 3) in the platform frame [m] and triangles (F, 3) indexing them."""
+    points = np.unique(np.round(system.platform_points, 12), axis=0)
+    centroid = points.mean(axis=0)
+    angle = np.arctan2(points[:, 1] - centroid[1], points[:, 0] - centroid[0])
+    ring = points[np.argsort(angle)]
+    n = len(ring)
+    top, bottom = ring + [0, 0, thickness / 2], ring - [0, 0, thickness / 2]
+    vertices = np.concatenate([top, bottom])
+    faces = [(0, i, i + 1) for i in range(1, n - 1)]
+    faces += [(n, n + i + 1, n + i) for i in range(1, n - 1)]
+    for i in range(n):
+        j = (i + 1) % n
+        faces += [(i, n + i, n + j), (i, n + j, j)]
+    return vertices, np.array(faces)
+
+
+def platform_body(system: CableSystem, thickness: float) -> Body:
+    """The platform's collision body (:func:`platform_prism`)."""
+    vertices, faces = platform_prism(system, thickness)
+    low, high = vertices.min(axis=0), vertices.max(axis=0)
+    return Body(
+        "platform",
+        _bvh(vertices, faces),
+        np.zeros(3),
+        np.eye(3),
+        (low + high) / 2,
+        (high - low) / 2,
+    )
+
+
+def obstacle_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
+    """The scene's obstacles grown by its clearance, placed once in the world (ground
+    excluded); names and indices are the scene's."""
+    bodies = []
+    for index, shape in enumerate(scene.grown_obstacles()):
+        name = scene.obstacle_name(index)
+        body = body_from_shape(shape, name, base_dir, f"scene.obstacles[{index}]")
+        placed = fcl.CollisionObject(body.geometry, fcl.Transform(body.rotation, body.center))
+        bodies.append(
+            Body(
+                body.name,
+                body.geometry,
+                body.center,
+                body.rotation,
+                body.box_center,
+                body.half_size,
+                placed,
+            )
+        )
+    return bodies
+
+
+def payload_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
+    """The payload's shapes, posed in the platform frame."""
+    return [
+        body_from_shape(
+            shape,
+            shape.name or f"payload {shape.kind} {index + 1}",
+            base_dir,
+            f"scene.payload.shapes[{index}]",
+        )
+        for index, shape in enumerate(scene.payload.shapes)
+    ]
+
+
+@dataclass(frozen=True)
+class BoxSet:
+    """Oriented boxes of several bodies in their parent frame, stacked for vectorized use."""
+
+    centers: NDArray[np.float64]  #: (B, 3)
+    axes: NDArray[np.float64]  #: (B, 3, 3)
+    halves: NDArray[np.float64]  #: (B, 3)
+
+    @classmethod
+    def of(cls, bodies: list[Body]) -> BoxSet:
+        if not bodies:
+            return cls(np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)))
+        return cls(
+            np.stack([b.box_center for b in bodies]),
+            np.stack([b.rotation for b in bodies]),
+            np.stack([b.half_size for b in bodies]),
+        )
+
+
+def world_boxes(
+    boxes: BoxSet, position: NDArray[np.float64], rotation: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """World-aligned boxes (centres, half sizes) of platform-fixed bodies, each (N, B, 3).
+
+    A box with axes ``R`` and half sizes ``h`` spans ``|R| h`` along the world axes.
+    """
+    centers, axes, halves = boxes.centers, boxes.axes, boxes.halves
+    world_centers = position[:, None, :] + np.einsum("nab,kb->nka", rotation, centers)
+    world_axes = np.einsum("nab,kbc->nkac", rotation, axes)
+    return world_centers, np.einsum("nkac,kc->nka", np.abs(world_axes), halves)
+
+
+def static_boxes(boxes: BoxSet) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """World-aligned boxes (centres, half sizes) of world-fixed bodies, each (B, 3)."""
+    return boxes.centers, np.einsum("kac,kc->ka", np.abs(boxes.axes), boxes.halves)
+
+
+def sphere_touches_boxes(
+    centers: NDArray[np.float64], radius: float, boxes: BoxSet
+) -> NDArray[np.bool_]:
+    """Whether spheres (..., 3) touch oriented boxes (O,), exactly: (..., O).
+
+    The sphere centre, in each box's frame, is clamped to the box; the sphere touches it
+    when that closest point is within the radius.
+    """
+    local = np.einsum("oba,...ob->...oa", boxes.axes, centers[..., None, :] - boxes.centers)
+    outside = local - np.clip(local, -boxes.halves, boxes.halves)
+    return np.einsum("...a,...a->...", outside, outside) <= radius**2
+
+
+def segment_near_boxes(
+    start: NDArray[np.float64], end: NDArray[np.float64], margin: float, boxes: BoxSet
+) -> NDArray[np.bool_]:
+    """Whether segments (..., 3) cross oriented boxes grown by ``margin`` on every side.
+
+    Slab test in each box's frame. A capsule of radius ``margin`` can only touch a box if
+    its axis crosses the box grown by the margin, so False is exact and True needs a narrow
+    check (near the grown box's edges and corners the capsule may still miss).
+    """
+    p0 = np.einsum("oba,...ob->...oa", boxes.axes, start[..., None, :] - boxes.centers)
+    p1 = np.einsum("oba,...ob->...oa", boxes.axes, end[..., None, :] - boxes.centers)
+    d = p1 - p0
+    half = boxes.halves + margin
+    flat = np.abs(d) < 1e-12
+    safe = np.where(flat, 1.0, d)
+    t1, t2 = (-half - p0) / safe, (half - p0) / safe
+    low = np.where(flat, np.where(np.abs(p0) <= half, -np.inf, np.inf), np.minimum(t1, t2))
+    high = np.where(flat, np.where(np.abs(p0) <= half, np.inf, -np.inf), np.maximum(t1, t2))
+    return np.maximum(low.max(axis=-1), 0.0) <= np.minimum(high.min(axis=-1), 1.0)
+
+
+def rotations_from_z(direction: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotations taking the z axis onto unit vectors, (..., 3) -> (..., 3, 3) (Rodrigues).
+
+    Used to pose fcl capsules, whose axis is their local z. Directions within 1e-9 of -z
+    take a half turn about x.
+    """
+    d = np.asarray(direction, dtype=float)
+    c = d[..., 2]
+    v = np.stack([-d[..., 1], d[..., 0], np.zeros_like(c)], axis=-1)  # z x d
+    k = np.zeros(d.shape[:-1] + (3, 3))
+    k[..., 0, 2], k[..., 1, 2], k[..., 2, 0], k[..., 2, 1] = (
+        v[..., 1],
+        -v[..., 0],
+        -v[..., 1],
+        v[..., 0],
+    )
+    k[..., 0, 1], k[..., 1, 0] = -v[..., 2], v[..., 2]
+    flipped = c < -1.0 + 1e-9
+    scale = np.where(flipped, 0.0, 1.0 / np.where(flipped, 1.0, 1.0 + c))
+    r = np.eye(3) + k + (k @ k) * scale[..., None, None]
+    r[flipped] = np.diag([1.0, -1.0, -1.0])
+    return r

@@ -1,0 +1,368 @@
+"""Compiled collision checks of configurations: the planner's fast path (design.md s.6).
+
+The same bodies and rules as :class:`flycrane.world.collision.CollisionChecker` (python-fcl), which
+stays the reference this kernel is tested against and the checker of triangle meshes:
+
+- robot: drones (spheres at A_k), cables (capsules b_i -> A_i), the platform (the prism
+  through the B'_i, a convex polytope) and the payload's boxes, cylinders and spheres;
+- against the obstacles (grown by the scene's clearance) and the ground (raised by it);
+- self: drone centres at least ``min_drone_separation`` apart, no drone touching another
+  drone's cables, no drone or cable touching the payload (cables without their first
+  ``cable_clearance_at_platform`` metres).
+
+Per configuration, one compiled pass in three parts: the pose (platform and payload, which
+no alpha moves), each drone with its two cables (what its alpha moves), and the formation
+(drone separations, drones against other drones' cables); the planner uses the parts
+alone to choose the alphas of a pose. Every body is box-tested against each obstacle and
+the overlapping pairs are decided by :mod:`flycrane.world.primitives` (exact closed
+forms for spheres, GJK with proven bounds otherwise). Nothing is allocated per
+configuration; a batch shares one :func:`workspace`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.kinematics import matrix_from_tilt_torsion
+from flycrane.model.system_spec import DRONE_CABLES
+from flycrane.world.bodies import platform_body
+from flycrane.world.primitives import (
+    BOX,
+    CYLINDER,
+    GJK_WORK,
+    POINT,
+    POLYTOPE,
+    SEGMENT,
+    bounds,
+    point_distance_squared,
+    shapes_touch,
+)
+from flycrane.world.scene import Box, Cylinder, Mesh, SceneSpec, Sphere
+
+#: Robot-body rows, drone by drone: drone k at 3k, its cables DRONE_CABLES[k] at 3k + 1 and
+#: 3k + 2 (so each drone's bodies are one range), the platform at 9, the payload from 10.
+_FIXED_BODIES = 10
+_PLATFORM = 9
+#: Platform point b_i where each cable row starts (rows 3k + 1 + m: cable DRONE_CABLES[k][m]).
+_CABLE_POINTS = np.array(DRONE_CABLES, dtype=np.int64)
+
+
+def _primitives(shapes) -> tuple[np.ndarray, ...]:
+    """(kind, centre, rotation, size, margin) arrays of boxes, cylinders and spheres."""
+    kind, center, rot, size, margin = [], [], [], [], []
+    for shape in shapes:
+        if isinstance(shape, Mesh):
+            continue
+        center.append(np.array(shape.center, dtype=float))
+        rot.append(matrix_from_tilt_torsion(np.array(shape.rotation, dtype=float)))
+        if isinstance(shape, Box):
+            kind.append(BOX)
+            size.append(np.array(shape.size) / 2)
+            margin.append(0.0)
+        elif isinstance(shape, Cylinder):
+            kind.append(CYLINDER)
+            size.append(np.array([shape.radius, shape.height / 2, 0.0]))
+            margin.append(0.0)
+        elif isinstance(shape, Sphere):
+            kind.append(POINT)
+            size.append(np.zeros(3))
+            margin.append(shape.radius)
+    n = len(kind)
+    return (
+        np.array(kind, dtype=np.int64),
+        np.array(center, dtype=float).reshape(n, 3),
+        np.array(rot, dtype=float).reshape(n, 3, 3),
+        np.array(size, dtype=float).reshape(n, 3),
+        np.array(margin, dtype=float),
+    )
+
+
+def _world_boxes(kind, center, rot, size, margin) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounds (low, high) of world-fixed primitives, each (O, 3)."""
+    half = np.zeros_like(center)
+    for o in range(len(kind)):
+        if kind[o] == BOX:
+            half[o] = np.abs(rot[o]) @ size[o]
+        elif kind[o] == CYLINDER:
+            axis = rot[o][:, 2]
+            half[o] = size[o, 0] * np.sqrt(np.clip(1 - axis**2, 0, 1)) + size[o, 1] * np.abs(axis)
+        half[o] += margin[o]
+    return center - half, center + half
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledScene:
+    """A scene's obstacles, payload and collision settings as the kernel's arrays.
+
+    ``has_meshes``: the scene has triangle meshes, which only fcl checks; configurations
+    the kernel finds free must then also pass the fcl checker.
+    """
+
+    arrays: tuple
+    has_meshes: bool
+
+    @classmethod
+    def build(cls, system: CableSystem, scene: SceneSpec) -> CompiledScene:
+        settings = scene.collision
+        obstacles = _primitives(scene.grown_obstacles())
+        low, high = _world_boxes(*obstacles)
+        payload = _primitives(scene.payload.shapes)
+        prism = platform_body(system, settings.platform_thickness)
+        ring = np.unique(np.round(system.platform_points, 12), axis=0)
+        half = np.array([0.0, 0.0, settings.platform_thickness / 2])
+        vertices = np.concatenate([ring + half, ring - half])
+        assert np.allclose(prism.box_center + prism.half_size, vertices.max(axis=0))
+        params = np.array(
+            [
+                settings.drone_radius,
+                settings.cable_radius,
+                settings.min_drone_separation,
+                settings.cable_clearance_at_platform,
+                settings.obstacle_clearance,  # the raised ground
+                float(scene.ground),
+            ]
+        )
+        # Robot bodies (rows: _FIXED_BODIES): per drone a point and two segments, the
+        # platform, the payload.
+        body_kind = np.array([POINT, SEGMENT, SEGMENT] * 3 + [POLYTOPE], dtype=np.int64)
+        body_margin = np.array(
+            [settings.drone_radius, settings.cable_radius, settings.cable_radius] * 3 + [0.0]
+        )
+        arrays = (
+            *obstacles,
+            low,
+            high,
+            *payload,
+            np.ascontiguousarray(vertices),
+            params,
+            _CABLE_POINTS,
+            np.concatenate([body_kind, payload[0]]),
+            np.concatenate([body_margin, payload[4]]),
+        )
+        meshes = any(isinstance(s, Mesh) for s in (*scene.obstacles, *scene.payload.shapes))
+        return cls(arrays, meshes)
+
+    def workspace(self) -> tuple:
+        """Scratch tables for :func:`collision_free_row`, one per batch: the robot bodies'
+        world centres (cable starts), sizes (cable ends), rotations and bounds, the
+        platform's world vertices, GJK scratch; the bodies' last row is a spare shape."""
+        bodies = len(self.arrays[-2])
+        vertices = len(self.arrays[12])
+        return (
+            np.zeros((bodies + 1, 3)),
+            np.zeros((bodies + 1, 3)),
+            np.zeros((bodies + 1, 3, 3)),
+            np.zeros((vertices, 3)),
+            np.zeros((bodies, 2, 3)),
+            np.zeros((GJK_WORK, 3)),
+        )
+
+
+@numba.njit(cache=True, nogil=True)
+def _bodies_free(first, last, scene, work) -> bool:
+    """Robot bodies first..last-1 (placed) against the ground and the obstacles; fills
+    their bounds.
+
+    Shape kinds are always passed from the kinds array, never as constants: numba types a
+    constant argument as a literal, and every literal compiles the callees again.
+    """
+    obs_kind, obs_center, obs_rot, obs_size, obs_margin, obs_low, obs_high = scene[:7]
+    params, kinds, margins = scene[13], scene[15], scene[16]
+    centers, sizes, rots, verts, boxes, gjk = work
+    for b in range(first, last):
+        bounds(kinds[b], b, centers, rots, sizes, verts, margins[b], boxes, b)
+        if params[5] > 0.0 and boxes[b, 0, 2] <= params[4]:
+            return False
+        for o in range(obs_kind.shape[0]):
+            if (
+                boxes[b, 0, 0] > obs_high[o, 0]
+                or boxes[b, 1, 0] < obs_low[o, 0]
+                or boxes[b, 0, 1] > obs_high[o, 1]
+                or boxes[b, 1, 1] < obs_low[o, 1]
+                or boxes[b, 0, 2] > obs_high[o, 2]
+                or boxes[b, 1, 2] < obs_low[o, 2]
+            ):
+                continue
+            if shapes_touch(
+                kinds[b], b, centers, rots, sizes, verts,
+                obs_kind[o], o, obs_center, obs_rot, obs_size, verts,
+                margins[b] + obs_margin[o], gjk,
+            ):  # fmt: skip
+                return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def pose_free(q, kin, scene, work) -> bool:
+    """Place the platform pose of q (R, cable starts b_i, platform, payload) and check the
+    platform and the payload, which no alpha moves. The first part of
+    :func:`collision_free_row`; :func:`drone_free` and :func:`formation_free` follow it."""
+    points = kin[0]
+    pay_center, pay_rot, pay_size, plat_local = scene[8], scene[9], scene[10], scene[12]
+    cable_points = scene[14]
+    centers, sizes, rots, verts = work[0], work[1], work[2], work[3]
+    spare = scene[15].shape[0]
+    rot = rots[spare]  # R (paper eq. 1) lives in the spare row
+    phi, theta, sigma = q[3], q[4], q[5]
+    cp, sp, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
+    cs, ss = math.cos(sigma - phi), math.sin(sigma - phi)
+    rot[0, 0], rot[0, 1], rot[0, 2] = cp * ct * cs - sp * ss, -cp * ct * ss - sp * cs, cp * st
+    rot[1, 0], rot[1, 1], rot[1, 2] = sp * ct * cs + cp * ss, -sp * ct * ss + cp * cs, sp * st
+    rot[2, 0], rot[2, 1], rot[2, 2] = -st * cs, st * ss, ct
+    for k in range(3):
+        for m in range(2):
+            i = cable_points[k, m]
+            for a in range(3):
+                acc = q[a]
+                for c in range(3):
+                    acc += rot[a, c] * points[i, c]
+                centers[3 * k + 1 + m, a] = acc
+    for v in range(plat_local.shape[0]):
+        for a in range(3):
+            acc = q[a]
+            for c in range(3):
+                acc += rot[a, c] * plat_local[v, c]
+            verts[v, a] = acc
+    for b in range(_FIXED_BODIES, spare):
+        j = b - _FIXED_BODIES
+        for a in range(3):
+            acc = q[a]
+            for c in range(3):
+                acc += rot[a, c] * pay_center[j, c]
+                total = 0.0
+                for m in range(3):
+                    total += rot[a, m] * pay_rot[j, m, c]
+                rots[b, a, c] = total
+            centers[b, a] = acc
+            sizes[b, a] = pay_size[j, a]
+    return _bodies_free(_PLATFORM, spare, scene, work)
+
+
+@numba.njit(cache=True, nogil=True)
+def drone_free(q, k, kin, scene, work) -> bool:
+    """Place drone k at its alpha q[6 + k] with its two cables (after :func:`pose_free`)
+    and check them against the ground, the obstacles and the payload (cables without their
+    first ``cable_clearance_at_platform`` metres): everything drone k's alpha moves but
+    the other drones."""
+    _, foot, radius, outward, up = kin
+    params, kinds, margins = scene[13], scene[15], scene[16]
+    centers, sizes, rots, verts, boxes, gjk = work
+    spare = kinds.shape[0]
+    rot = rots[spare]
+    drone = 3 * k
+    ca, sa = math.cos(q[6 + k]), math.sin(q[6 + k])
+    for a in range(3):
+        acc = q[a]
+        for c in range(3):
+            acc += rot[a, c] * (foot[k, c] + radius[k] * (ca * outward[k, c] + sa * up[k, c]))
+        centers[drone, a] = acc
+        sizes[drone + 1, a] = sizes[drone + 2, a] = acc
+    if not _bodies_free(drone, drone + 3, scene, work):
+        return False
+    for p in range(_FIXED_BODIES, spare):
+        if _boxes_overlap(boxes, drone, boxes, p) and shapes_touch(
+            kinds[drone], drone, centers, rots, sizes, verts,
+            kinds[p], p, centers, rots, sizes, verts,
+            params[0] + margins[p], gjk,
+        ):  # fmt: skip
+            return False
+        for cable in range(drone + 1, drone + 3):
+            if not _boxes_overlap(boxes, cable, boxes, p):
+                continue
+            length = 0.0
+            for a in range(3):
+                length += (sizes[cable, a] - centers[cable, a]) ** 2
+            fraction = min(1.0, params[3] / math.sqrt(length)) if length > 0.0 else 1.0
+            for a in range(3):
+                centers[spare, a] = centers[cable, a] + fraction * (
+                    sizes[cable, a] - centers[cable, a]
+                )
+                sizes[spare, a] = sizes[cable, a]
+            if shapes_touch(
+                kinds[cable], spare, centers, rots, sizes, verts,
+                kinds[p], p, centers, rots, sizes, verts,
+                params[1] + margins[p], gjk,
+            ):  # fmt: skip
+                return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def formation_free(scene, work) -> bool:
+    """Drone centres at least the separation apart, no drone touching another drone's
+    cables (after :func:`drone_free` placed all three)."""
+    params, kinds = scene[13], scene[15]
+    centers, sizes, rots = work[0], work[1], work[2]
+    reach = (params[0] + params[1]) ** 2
+    for k in range(3):
+        for m in range(3):
+            if m == k:
+                continue
+            if m > k:
+                gap = 0.0
+                for a in range(3):
+                    gap += (centers[3 * k, a] - centers[3 * m, a]) ** 2
+                if gap < params[2] * params[2]:
+                    return False
+            for cable in range(3 * m + 1, 3 * m + 3):
+                d = point_distance_squared(
+                    centers[3 * k], kinds[cable], cable, centers, rots, sizes
+                )
+                if d < reach:
+                    return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def collision_free_row(q, kin, scene, work) -> bool:
+    """Whether configuration q (9,) collides with nothing (module docstring).
+
+    ``kin``: :func:`kinematic_arrays`; ``scene``: :attr:`CompiledScene.arrays`; ``work``:
+    :meth:`CompiledScene.workspace`.
+    """
+    if not pose_free(q, kin, scene, work):
+        return False
+    # A loop, not drone_free(q, 0, ...) ... (q, 2, ...): constant arguments are literals to
+    # numba, which compiled drone_free three times (2 s of CPU in a fresh install's first run).
+    for k in range(3):
+        if not drone_free(q, k, kin, scene, work):
+            return False
+    return formation_free(scene, work)
+
+
+@numba.njit(cache=True, nogil=True)
+def _boxes_overlap(boxes_a, a, boxes_b, b) -> bool:
+    for axis in range(3):
+        if boxes_a[a, 0, axis] > boxes_b[b, 1, axis] or boxes_a[a, 1, axis] < boxes_b[b, 0, axis]:
+            return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _collision_free_rows(q, kin, scene, work, out) -> None:
+    for row in range(q.shape[0]):
+        out[row] = collision_free_row(q[row], kin, scene, work)
+
+
+def kinematic_arrays(system: CableSystem) -> tuple:
+    """The system's arrays :func:`collision_free_row` poses bodies with."""
+    return (
+        np.ascontiguousarray(system.platform_points),
+        np.ascontiguousarray(system.drone_foot),
+        np.ascontiguousarray(system.drone_radius),
+        np.ascontiguousarray(system.drone_outward),
+        np.ascontiguousarray(system.drone_up),
+    )
+
+
+def collision_free(system: CableSystem, compiled: CompiledScene, q: np.ndarray) -> np.ndarray:
+    """Kernel verdicts for configurations (N, 9), ignoring meshes (N,)."""
+    q = np.ascontiguousarray(q, dtype=float).reshape(-1, 9)
+    out = np.empty(len(q), dtype=np.bool_)
+    _collision_free_rows(q, kinematic_arrays(system), compiled.arrays, compiled.workspace(), out)
+    return out

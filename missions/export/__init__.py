@@ -1,0 +1,1 @@
+"""What a task produces for the vehicles: mission items, file formats, logs."""

@@ -1,0 +1,1 @@
+"""A simulated ArduCopter for tests: protocol, parameters and a kinematic flight."""

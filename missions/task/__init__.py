@@ -1,0 +1,1 @@
+"""A task end to end: its schema, its resolution, its directory and its run."""

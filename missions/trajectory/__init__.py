@@ -1,0 +1,1 @@
+"""From a planned path to timed drone motion: tracks, waypoints, legs, flight plan."""

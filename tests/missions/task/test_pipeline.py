@@ -1,0 +1,191 @@
+"""The whole job on the default Rescue task, task resolution errors, and ``flycrane plan``.
+
+Artifacts are opened with their real readers (pymavlink's MAVWPLoader and parameter
+reader, json, the mcap reader); the missions are checked end to end against the scene's
+start and goal, and their speed items against the limits the plan solved.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from pymavlink import mavparm, mavwp
+
+from flycrane.cli import main
+from flycrane.errors import InputError
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.kinematics import drone_positions_from_configuration
+from flycrane.planning.planners import PlannerOptions
+from flycrane.planning.validity import InvalidConfigurationError
+from flycrane.world.scene import load_scene
+from missions.autopilots.ardupilot import ArduCopterSettings
+from missions.autopilots.spline import SpeedLimits
+from missions.export.formats import mission_from_json
+from missions.export.items import MavCmd
+from missions.options import MissionOptions
+from missions.task.pipeline import _self_contained, run_task
+from missions.task.spec import TaskSpec, resolve_task
+from tests.missions.helpers import applied_limits, approximate_geodetic
+
+TASK = TaskSpec(planner=PlannerOptions(seed=0, time_budget=60))
+
+
+@pytest.fixture(scope="module")
+def rescue(tmp_path_factory):
+    out = tmp_path_factory.mktemp("rescue")
+    return run_task(TASK, out), out
+
+
+def test_default_rescue_task_is_done_with_every_artifact(rescue):
+    outcome, out = rescue
+    assert outcome.status == "done", outcome.reason
+    assert outcome.planner_status == "exact_solution"
+    expected = {"path.json", "tracks.json", "mission.mcap", "profile.png", "summary.json"}
+    expected |= {"task.json"}
+    expected |= {f"drone{j}.{kind}" for j in (1, 2, 3) for kind in
+                 ("waypoints", "plan", "mission.json", "parm")}  # fmt: skip
+    assert set(outcome.artifacts.values()) == expected
+    for name in expected:
+        assert (out / name).stat().st_size > 0, name
+    assert (out / "profile.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    assert summary["status"] == "done"
+    assert summary["mission"] == json.loads(json.dumps(outcome.mission))
+    assert 0.0 < summary["mission"]["timing_tolerance"]["start_offset"]
+
+
+def test_rescue_files_load_with_their_readers_and_agree(rescue):
+    outcome, out = rescue
+    waypoints = outcome.mission["waypoints"]
+    for j in (1, 2, 3):
+        loader = mavwp.MAVWPLoader()
+        count = loader.load(str(out / f"drone{j}.waypoints"))
+        assert count == outcome.mission["items_per_drone"][j - 1]
+        commands = [loader.wp(i).command for i in range(count)]
+        # home, then one spline waypoint per leg
+        assert commands.count(MavCmd.NAV_WAYPOINT) == 1
+        assert commands.count(MavCmd.NAV_SPLINE_WAYPOINT) == waypoints - 1
+        mission = mission_from_json(json.loads((out / f"drone{j}.mission.json").read_text()))
+        assert [int(it.command) for it in mission.items] == commands
+        plan = json.loads((out / f"drone{j}.plan").read_text(encoding="utf-8"))
+        assert len(plan["mission"]["items"]) == count - 1
+    with (out / "mission.mcap").open("rb") as stream:
+        reader = make_reader(stream)
+        topics = {c.topic for c in reader.get_summary().channels.values()}
+        assert {"/scene", "/tf", "/drone1/fix", "/annotations/cost"} <= topics
+        assert sum(1 for _ in reader.iter_messages(topics=["/annotations/cost"])) == waypoints
+    tracks = json.loads((out / "tracks.json").read_text(encoding="utf-8"))
+    assert len(tracks["time"]) == len(tracks["drones_enu"]) == waypoints
+    path = json.loads((out / "path.json").read_text(encoding="utf-8"))
+    assert len(path["configurations"]) >= 2
+
+
+def test_rescue_missions_hold_above_the_start_and_set_the_bridge_down_on_the_roofs(rescue):
+    """The default position-error model (RTK) keeps 8 cm from everything; the scene's start
+    (bridge 5 cm above the ground) is lifted by the take-off and its goal (5 cm above the
+    roofs) is reached by a set-down onto both buildings."""
+    outcome, out = rescue
+    scene, _ = load_scene("rescue")
+    system = CableSystem.from_spec(scene.system_spec())
+    summary = outcome.mission
+    assert summary["obstacle_clearance"] == pytest.approx(0.08)
+    assert summary["lift_off"]["surfaces"] == ["ground"]
+    assert summary["set_down"]["surfaces"] == ["east building", "west building"]
+    # the set-down starts set_down_approach above the lowest clear pose: the bridge 5 cm
+    # above the roofs needs 3 cm more for 8 cm of clearance
+    approach = MissionOptions().set_down_approach
+    assert summary["set_down"]["height"] == pytest.approx(0.03 + approach, abs=0.011)
+    lift = summary["lift_off"]["height"]
+    raised = np.array(scene.start) + [0, 0, lift, 0, 0, 0, 0, 0, 0]
+    ends = drone_positions_from_configuration(system, [raised, scene.goal])
+    origin = MissionOptions().origin
+    for j in (1, 2, 3):
+        items = mission_from_json(json.loads((out / f"drone{j}.mission.json").read_text())).items
+        hold, last = items[2], [it for it in items if it.command == MavCmd.NAV_SPLINE_WAYPOINT][-1]
+        assert hold.command == MavCmd.NAV_LOITER_UNLIM
+        for item, enu in ((hold, ends[0][j - 1]), (last, ends[1][j - 1])):
+            lat, lon = approximate_geodetic(enu, origin)
+            assert abs(item.x - lat * 1e7) <= 0.51 and abs(item.y - lon * 1e7) <= 0.51
+            # stored in whole centimetres, above home: where the drone stood
+            assert item.z + MissionOptions().home_height == pytest.approx(enu[2], abs=0.01)
+
+
+def test_rescue_speed_items_are_the_limits_the_plan_solved(rescue):
+    _, out = rescue
+    tracks = json.loads((out / "tracks.json").read_text(encoding="utf-8"))
+    initial = ArduCopterSettings().initial_speeds
+    for j in (1, 2, 3):
+        mission = mission_from_json(json.loads((out / f"drone{j}.mission.json").read_text()))
+        planned = [SpeedLimits(**limits) for limits in tracks["speed_limits"][j - 1]]
+        assert applied_limits(mission, initial) == planned
+
+
+def test_rescue_parameter_files_read_with_pymavlink_say_what_the_plan_assumes(rescue):
+    _, out = rescue
+    for j in (1, 2, 3):
+        read = mavparm.MAVParmDict()
+        read.load(str(out / f"drone{j}.parm"), use_excludes=False)
+        expected = ArduCopterSettings.for_acceleration(MissionOptions().autopilot_acceleration)
+        assert dict(read) == pytest.approx(expected.parameters())
+        assert "BARO_GND_TEMP" not in read  # never changed on a powered vehicle
+
+
+def test_a_start_in_collision_is_refused_naming_the_bodies():
+    on_the_ground = (0.0, 0.0, 0.2, 0.0, 0.0, np.pi / 2, 1.0, 1.0, 1.0)  # bridge 0.2 m too low
+    with pytest.raises(InvalidConfigurationError) as caught:
+        resolve_task(TaskSpec(start=on_the_ground))
+    assert caught.value.what == "start"
+    assert ("footbridge", "ground") in {(c.body, c.other) for c in caught.value.reason.contacts}
+    assert "footbridge hits ground" in str(caught.value)
+
+
+def test_a_goal_inside_a_building_names_the_building():
+    with pytest.raises(InvalidConfigurationError) as caught:
+        resolve_task(TaskSpec(goal=(-6.0, 0.0, 4.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)))
+    assert caught.value.what == "goal"
+    assert {c.other for c in caught.value.reason.contacts} == {"west building"}
+
+
+def test_an_unknown_scene_is_an_input_error_naming_the_scene_field():
+    with pytest.raises(InputError) as caught:
+        resolve_task(TaskSpec(scene="atlantis"))
+    assert [p.field for p in caught.value.problems] == ["scene"]
+    assert "atlantis" in str(caught.value) and "rescue" in str(caught.value)
+
+
+def test_bitrrt_asked_for_in_a_scene_with_meshes_is_refused_naming_the_field():
+    """bitrrt checks primitive shapes only: asked for in a mesh scene it is refused at once;
+    the default falls back to T-RRT, which plans it (flycrane/planning/planners.py)."""
+    scene = load_scene("rescue")[0].model_dump(mode="json")
+    scene["obstacles"].append(
+        {"kind": "mesh", "name": "sign", "vertices": [[9, 4, 0], [10, 4, 0], [9, 5, 1]],
+         "faces": [[0, 1, 2]]}
+    )  # fmt: skip
+    exact = MissionOptions(position_error="exact")  # meshes cannot be grown by a clearance
+    with pytest.raises(InputError) as caught:
+        resolve_task(
+            TaskSpec(scene=scene, planner=PlannerOptions(algorithm="bitrrt"), mission=exact)
+        )
+    assert [p.field for p in caught.value.problems] == ["planner.algorithm"]
+    assert "trrt" in str(caught.value)
+    task = TaskSpec(scene=scene, mission=exact)
+    resolved = resolve_task(task)
+    assert resolved.problem.validity.has_meshes
+    # task.json names the planner, and reads back as a task (the flight report's)
+    written = _self_contained(task, resolved)
+    assert written["planner"]["algorithm"] == "trrt"
+    resolve_task(TaskSpec.model_validate(written))
+
+
+def test_plan_command_prints_where_the_missions_are(tmp_path, capsys):
+    assert main(["plan", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "status: done" in out
+    for j in (1, 2, 3):
+        assert str(tmp_path / f"drone{j}.waypoints") in out
+        assert (tmp_path / f"drone{j}.waypoints").exists()
+    assert str(tmp_path / "mission.mcap") in out
+    assert str(tmp_path / "summary.json") in out
