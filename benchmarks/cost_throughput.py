@@ -17,8 +17,9 @@ import time
 import numpy as np
 
 from flycrane.model.cable_system import CableSystem
-from flycrane.model.cost import configuration_cost, cost_from_report
+from flycrane.model.cost import cost_from_report
 from flycrane.model.statics import evaluate_statics
+from flycrane.model.statics_kernel import configuration_cost
 
 
 def sample(n: int, rng: np.random.Generator) -> np.ndarray:

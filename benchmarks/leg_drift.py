@@ -15,25 +15,25 @@ largest drift of each flight.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from missions.flight_report.leg_times import flight_record
+from missions.flight_report.record import FlightRecord
+from missions.task.directory import TaskDirectory
 
 
 def legs(flight_dir: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A flight's legs: planned (L,) and flown (3, L) durations [s], and each drone's
     horizontal and vertical travel (3, L, 2) [m]."""
     record = flight_record(flight_dir)
-    task = Path(json.loads((flight_dir / "flight.json").read_text())["task_dir"])
-    tracks = json.loads((task / "tracks.json").read_text())
+    tracks = TaskDirectory(FlightRecord.read(flight_dir).task_dir).tracks()
     count = min(len(d["legs_s"]) for d in record["drones"])
-    planned = np.diff(np.array(tracks["time"]))[:count]
+    planned = np.diff(tracks.time)[:count]
     flown = np.array([d["legs_s"][:count] for d in record["drones"]])
-    stored = np.array(tracks["drones_stored_enu"])
+    stored = tracks.drones_stored_enu
     step = np.diff(stored, axis=0)[:count].transpose(1, 0, 2)  # (3, L, 3)
     travel = np.stack([np.hypot(step[..., 0], step[..., 1]), step[..., 2]], axis=-1)
     return planned, flown, travel

@@ -14,17 +14,17 @@ margins of the planned paths (:func:`flycrane.analysis.profiles.least_margins`).
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 
 import numpy as np
 
 from flycrane.analysis.profiles import least_margins, path_profile
 from flycrane.planning.planners import PlannerOptions
+from missions.task.directory import TaskDirectory, TaskDirectoryError
 from missions.task.pipeline import run_task
-from missions.task.spec import TaskSpec, resolve_task
+from missions.task.resolve import resolve_task
+from missions.task.spec import TaskSpec
 
 
 def run(scene: str, polish: bool, seed: int, budget: float) -> tuple[str, str, tuple | None]:
@@ -35,10 +35,10 @@ def run(scene: str, polish: bool, seed: int, budget: float) -> tuple[str, str, t
     resolved = resolve_task(task)
     with tempfile.TemporaryDirectory() as out:
         outcome = run_task(task, out, resolved=resolved)
-        path_file = Path(out) / "path.json"
-        if not path_file.exists():
+        try:  # a path the missions could not be built from was still planned
+            path = TaskDirectory(out).planned_path()
+        except TaskDirectoryError:
             return outcome.status, outcome.reason, None
-        path = np.array(json.loads(path_file.read_text())["configurations"])
     problem = resolved.problem
     margins = least_margins(path_profile(problem.system, problem.space, path), problem.system)
     return outcome.status, outcome.reason, (margins.slack, margins.thrust, margins.headroom)

@@ -26,7 +26,7 @@ import time
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.model.cost import configuration_cost
+from flycrane.model.statics_kernel import configuration_cost
 from flycrane.planning.algorithms.trrt import STEP_FRACTION, TRRT
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.result import TerminationCondition

@@ -15,78 +15,23 @@ from collections.abc import AsyncIterator
 from concurrent.futures import Executor
 from contextlib import asynccontextmanager, suppress
 
-from fastapi import Depends, FastAPI
+from fastapi import FastAPI
 from fastapi.concurrency import run_in_threadpool
 from starlette.middleware.trustedhost import TrustedHostMiddleware
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from flycrane.execution import executor_for
 from service.api.routes import health, presets, statics, tasks, view
-from service.deps import ServiceState, require_reader
+from service.deps import READ, ServiceState
 from service.errors import error_responses, install_error_handlers
 from service.jobs import JobManager
 from service.lifecycle import RETENTION_INTERVAL, DataDirLock, purge_expired
 from service.metrics import ServiceMetrics
+from service.middleware import BodySizeLimit
 from service.migrate import upgrade_database
 from service.settings import Settings, get_settings
 from service.storage import TaskStore, make_engine
 
 logger = logging.getLogger(__name__)
-
-
-class BodySizeLimit:
-    """Refuse request bodies above ``limit`` bytes with 413.
-
-    Counts the bytes as they arrive, so a missing or lying Content-Length (a chunked body)
-    does not help. Once the limit is crossed the 413 is sent at once, the application is
-    told the client left, and whatever it answers is dropped.
-    """
-
-    def __init__(self, app: ASGIApp, limit: int) -> None:
-        self.app, self.limit = app, limit
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope["type"] != "http":
-            await self.app(scope, receive, send)
-            return
-        declared = dict(scope.get("headers", [])).get(b"content-length")
-        if declared is not None and declared.isdigit() and int(declared) > self.limit:
-            await self._refuse(send)
-            return
-        seen, refused, started = 0, False, False
-
-        async def counting() -> Message:
-            nonlocal seen, refused
-            if refused:
-                return {"type": "http.disconnect"}
-            message = await receive()
-            seen += len(message.get("body", b""))
-            if seen > self.limit:
-                refused = True
-                if not started:
-                    await self._refuse(send)
-                return {"type": "http.disconnect"}
-            return message
-
-        async def guarded(message: Message) -> None:
-            nonlocal started
-            if refused:
-                return
-            started = True
-            await send(message)
-
-        await self.app(scope, counting, guarded)
-
-    async def _refuse(self, send: Send) -> None:
-        body = f'{{"detail": "request body larger than {self.limit} bytes"}}'.encode()
-        await send(
-            {
-                "type": "http.response.start",
-                "status": 413,
-                "headers": [(b"content-type", b"application/json"), (b"connection", b"close")],
-            }
-        )
-        await send({"type": "http.response.body", "body": body})
 
 
 async def _sweep(state: ServiceState) -> None:
@@ -160,7 +105,7 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         app.include_router(module.router)
     app.include_router(
         view.router,
-        dependencies=[Depends(require_reader)],
+        dependencies=READ,
         responses=error_responses(401, 404, 409, 503),
     )
     app.add_middleware(BodySizeLimit, limit=settings.max_request_bytes)

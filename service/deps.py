@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hmac
 from dataclasses import dataclass
+from typing import Annotated
 
 from fastapi import Depends, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
@@ -30,7 +31,12 @@ def get_state(request: Request) -> ServiceState:
     return request.app.state.service
 
 
+#: The application's state, as a route's parameter: ``state: StateDep``.
+StateDep = Annotated[ServiceState, Depends(get_state)]
+
+
 _bearer = HTTPBearer(auto_error=False)
+Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)]
 
 
 def _matches(credentials: HTTPAuthorizationCredentials | None, *tokens: SecretStr) -> bool:
@@ -47,8 +53,8 @@ def _refuse(what: str) -> UnauthorizedError:
 
 
 def require_token(
-    state: ServiceState = Depends(get_state),
-    credentials: HTTPAuthorizationCredentials | None = Depends(_bearer),
+    state: StateDep,
+    credentials: Credentials,
 ) -> None:
     """Changing anything needs ``Authorization: Bearer <api_token>`` when a token is set."""
     token = state.settings.api_token
@@ -57,8 +63,8 @@ def require_token(
 
 
 def require_reader(
-    state: ServiceState = Depends(get_state),
-    credentials: HTTPAuthorizationCredentials | None = Depends(_bearer),
+    state: StateDep,
+    credentials: Credentials,
 ) -> None:
     """Reading tasks needs the api_token or the read_token when a token is set (unless
     ``public_reads``): missions carry positions and the logs a whole flight plan."""
@@ -70,10 +76,18 @@ def require_reader(
         raise _refuse("read tasks")
 
 
-def base_url(request: Request, state: ServiceState = Depends(get_state)) -> str:
+def base_url(request: Request, state: StateDep) -> str:
     """Where URLs in responses start: ``public_url`` behind a proxy, else the request's own
     base (its Host is one of ``allowed_hosts``, checked before any route runs)."""
     configured = state.settings.public_url
     if configured is not None:
         return str(configured).rstrip("/") + "/"
     return str(request.base_url)
+
+
+#: Where URLs in responses start, as a route's parameter: ``base: BaseUrl``.
+BaseUrl = Annotated[str, Depends(base_url)]
+
+#: Route dependencies: reading needs :func:`require_reader`, changing :func:`require_token`.
+READ = [Depends(require_reader)]
+WRITE = [Depends(require_token)]

@@ -28,9 +28,12 @@ from missions.mavlink.errors import MavlinkError
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.transport import ConnectionSpec, VehicleLink, parse_connection
 from missions.mavlink.upload import Verification, upload_and_verify
+from service.artifacts import stored_missions
 from service.errors import UploadNotAllowedError
-from service.schemas import ParameterDifference, VehicleUpload
+from service.jobs import JobManager
+from service.schemas import ParameterDifference, UploadPublic, VehicleUpload
 from service.settings import Settings
+from service.storage import TaskRecord, TaskStore
 
 
 def _canonical(spec: ConnectionSpec) -> str:
@@ -139,3 +142,29 @@ def upload_missions(
             )
         ]
     return [future.result() for future in futures]
+
+
+def upload_task(
+    record: TaskRecord,
+    addresses: Sequence[str],
+    settings: Settings,
+    jobs: JobManager,
+    store: TaskStore,
+) -> UploadPublic:
+    """Upload a done task's missions to the vehicles at ``addresses`` (checked), read its
+    parameters back from each, and store the outcome.
+
+    Raises
+    ------
+    InputError, UploadNotAllowedError
+        An address is malformed, repeated or not allowed (:func:`allowed_vehicles`).
+    TaskNotReadyError, ArtifactNotFoundError, ArtifactUnreadableError
+        The task is not done, or its mission files are unusable.
+    """
+    vehicles = allowed_vehicles(addresses, settings)
+    missions, parameters = stored_missions(jobs, record)
+    policy = RetryPolicy(deadline_s=settings.upload_timeout)
+    uploads = upload_missions(vehicles, missions, parameters, policy)
+    outcome = UploadPublic(ok=all(v.ok for v in uploads), vehicles=uploads)
+    store.add_upload(record.id, outcome.model_dump())
+    return outcome

@@ -86,7 +86,6 @@ class CableSystem:
             radius.append(np.sqrt(lengths[i] ** 2 - along**2))
             outward.append(normal)
             up.append(up_k)
-        lo, hi = spec.tension_bounds()
         return cls(
             spec=spec,
             platform_points=_readonly(points),
@@ -97,10 +96,10 @@ class CableSystem:
             drone_up=_readonly(np.array(up)),
             platform_mass=float(spec.platform_mass),
             com_offset=_readonly(np.array(spec.com_offset)),
-            drone_masses=_readonly(spec.drone_masses()),
-            max_thrusts=_readonly(spec.max_thrusts()),
-            tension_min=_readonly(lo),
-            tension_max=_readonly(hi),
+            drone_masses=_readonly(np.array(spec.drone_mass, dtype=float)),
+            max_thrusts=_readonly(np.array(spec.max_thrust, dtype=float)),
+            tension_min=_readonly(np.array(spec.tension_min, dtype=float)),
+            tension_max=_readonly(np.array(spec.tension_max, dtype=float)),
             perturbation_sqrt=_readonly(
                 np.linalg.cholesky(np.linalg.inv(spec.perturbation.ellipsoid_matrix()))
             ),

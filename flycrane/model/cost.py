@@ -17,7 +17,7 @@ from __future__ import annotations
 from enum import StrEnum
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.statics import StaticsReport
@@ -53,18 +53,3 @@ def cost_from_report(
     log_cost[ok] = -np.log(factors[ok]).sum(axis=1)
     with np.errstate(over="ignore"):  # exp overflows to +inf on purpose: cost beyond 1e308
         return np.exp(log_cost)
-
-
-def configuration_cost(
-    system: CableSystem,
-    q: ArrayLike,
-    form: CostForm = CostForm.NORMALIZED,
-) -> NDArray[np.float64]:
-    """Cost c(q) of configurations, shape (N,), by the compiled statics kernel.
-
-    This is the planner's hot path; :func:`cost_from_report` over
-    :func:`flycrane.model.statics.evaluate_statics` is the numpy reference it is tested against.
-    """
-    from flycrane.model.statics_kernel import compiled_cost  # numba import kept off the CLI path
-
-    return compiled_cost(system, q, form)

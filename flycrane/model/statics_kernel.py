@@ -238,8 +238,11 @@ def compiled_statics(
     return f0, v, m, cost
 
 
-def compiled_cost(
+def configuration_cost(
     system: CableSystem, q: ArrayLike, form: CostForm = CostForm.NORMALIZED
 ) -> NDArray[np.float64]:
-    """Cost c(q) of configurations, shape (N,), +inf where infeasible or singular."""
+    """Cost c(q) of configurations, shape (N,), +inf where infeasible or singular: the
+    planner's hot path; :func:`~flycrane.model.cost.cost_from_report` over
+    :func:`~flycrane.model.statics.evaluate_statics` is the numpy reference it is tested
+    against."""
     return compiled_statics(system, q, form)[3]

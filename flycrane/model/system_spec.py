@@ -222,9 +222,9 @@ class SystemSpec(_Frozen):
 
     @model_validator(mode="after")
     def _limits_are_consistent(self) -> SystemSpec:
-        lo, hi = self.tension_bounds()
-        weight = self.drone_masses() * self.gravity
-        thrust = self.max_thrusts()
+        lo, hi = np.array(self.tension_min), np.array(self.tension_max)
+        weight = np.array(self.drone_mass) * self.gravity
+        thrust = np.array(self.max_thrust)
         reasons = [
             f"tension_max: cable {i + 1} upper bound {hi[i]} N must exceed its lower bound "
             f"tension_min = {lo[i]} N"
@@ -237,15 +237,6 @@ class SystemSpec(_Frozen):
         if reasons:
             raise ValueError("; ".join(reasons))
         return self
-
-    def drone_masses(self) -> np.ndarray:
-        return np.array(self.drone_mass)
-
-    def max_thrusts(self) -> np.ndarray:
-        return np.array(self.max_thrust)
-
-    def tension_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.array(self.tension_min), np.array(self.tension_max)
 
 
 #: Named systems users can ask for instead of a full description.

@@ -50,6 +50,7 @@ from scipy.optimize import minimize
 
 from flycrane.errors import FieldProblem, InputError
 from flycrane.model.cable_system import CableSystem
+from flycrane.model.statics_kernel import compiled_statics
 from flycrane.planning.interfaces import Validity
 from flycrane.planning.metrics import METRICS_RESOLUTION
 from flycrane.planning.result import TerminationCondition
@@ -104,8 +105,6 @@ def _soft_minimum(t: NDArray[np.float64], softness: float) -> float:
 
 
 def _margins(system: CableSystem, q: NDArray[np.float64]) -> _Margins:
-    from flycrane.model.statics_kernel import compiled_statics  # numba import kept off the CLI path
-
     f0, v, m, cost = compiled_statics(system, q)
     return _Margins(
         slack=float((f0 - v - system.tension_min).min()),

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.model.cable_system import CableSystem
+from flycrane.planning.objective import OptimizationObjective
 from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
 from flycrane.planning.validity_kernel import CompiledValidity
 
@@ -46,6 +47,7 @@ class Planner(Protocol):
     """A planner: solve() returns a status, never raises for "no path"."""
 
     name: str
+    objective: OptimizationObjective  #: what it minimizes; smoothing keeps to it
 
     def solve(
         self,

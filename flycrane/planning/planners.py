@@ -30,8 +30,6 @@ from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.quantities import MAX_LENGTH, Seed
 
 Algorithm = Literal["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt", "ompl-rrtconnect"]
-#: Planners that minimize the cost (their shortcuts must not add mechanical work).
-COST_AWARE: frozenset[str] = frozenset({"trrt", "bitrrt", "ompl-trrt"})
 #: Options of the unidirectional T-RRT that the bidirectional one has no use for.
 TRRT_ONLY = ("goal_bias", "goal_connection", "init_temperature", "refinement_ratio")
 
@@ -122,7 +120,8 @@ class PlannerOptions(BaseModel):
         )
 
     def trrt_config(self) -> TRRTConfig:
-        config = TRRTConfig(
+        """The paper's T-RRT with these options."""
+        return TRRTConfig(
             step=self.step,
             goal_bias=self.goal_bias,
             goal_connection=self.goal_connection,
@@ -131,33 +130,44 @@ class PlannerOptions(BaseModel):
             refinement_ratio=self.refinement_ratio,
             cost_threshold=np.inf if self.cost_threshold is None else self.cost_threshold,
         )
-        if self.algorithm in COST_AWARE:
-            return config
+
+    def rrt_config(self) -> TRRTConfig:
+        """Plain RRT (no transition test) with these options."""
         return TRRTConfig.rrt(
             step=self.step, goal_bias=self.goal_bias, goal_connection=self.goal_connection
         )
 
 
-def make_planner(space: ConfigurationSpace, validity: CompiledChecker, options: PlannerOptions):
-    """The planner object for :meth:`PlannerOptions.algorithm_for` the scene (each has
-    ``solve`` and ``name``).
+def make_planner(
+    space: ConfigurationSpace,
+    validity: CompiledChecker,
+    options: PlannerOptions,
+    algorithm: Algorithm | None = None,
+):
+    """The planner object of ``algorithm`` (default: :meth:`PlannerOptions.algorithm_for`
+    the scene); each has ``solve`` and ``name``.
 
     Raises
     ------
     MeshScene
         bitrrt asked for by name in a scene with triangle meshes.
     """
-    algorithm = options.algorithm_for(validity.has_meshes)
-    if algorithm == "bitrrt":
-        return BiTRRT(space, validity, options.bitrrt_config())
-    config = options.trrt_config()
-    if algorithm == "ompl-rrt":
-        return OmplPlanner(space, validity, "rrt", config)
-    if algorithm == "ompl-trrt":
-        return OmplPlanner(space, validity, "trrt", config)
-    if algorithm == "ompl-rrtconnect":
-        return OmplPlanner(space, validity, "rrtconnect", config)
-    return TRRT(space, validity, config, name=algorithm)
+    algorithm = algorithm or options.algorithm_for(validity.has_meshes)
+    return PLANNERS[algorithm](space, validity, options)
+
+
+#: How each algorithm's planner is made from the options.
+PLANNERS: dict[Algorithm, Callable[[ConfigurationSpace, CompiledChecker, PlannerOptions], Planner]]
+PLANNERS = {
+    "bitrrt": lambda space, validity, o: BiTRRT(space, validity, o.bitrrt_config()),
+    "trrt": lambda space, validity, o: TRRT(space, validity, o.trrt_config()),
+    "rrt": lambda space, validity, o: TRRT(space, validity, o.rrt_config()),
+    "ompl-trrt": lambda space, validity, o: OmplPlanner(space, validity, "trrt", o.trrt_config()),
+    "ompl-rrt": lambda space, validity, o: OmplPlanner(space, validity, "rrt", o.rrt_config()),
+    "ompl-rrtconnect": lambda space, validity, o: OmplPlanner(
+        space, validity, "rrtconnect", o.rrt_config()
+    ),
+}
 
 
 @dataclass(frozen=True)
@@ -179,14 +189,16 @@ def plan(
     should_stop: Callable[[], bool] | None = None,
     progress: Callable[[PlanningProgress], None] | None = None,
     planner: Planner | None = None,
+    algorithm: Algorithm | None = None,
 ) -> PlanningOutcome:
     """Plan within ``options.time_budget``, then smooth, polish (:meth:`PlannerOptions.
     polishes`) and measure the path.
     ``planner``: one built with settings the options do not carry (benchmarks of variants);
-    by default :func:`make_planner`'s."""
+    by default :func:`make_planner`'s. ``algorithm``: the one that runs, where the caller
+    resolved it already (:meth:`PlannerOptions.algorithm_for`)."""
     termination = TerminationCondition(options.time_budget, should_stop)
-    algorithm = options.algorithm_for(validity.has_meshes)
-    planner = planner or make_planner(space, validity, options)
+    algorithm = algorithm or options.algorithm_for(validity.has_meshes)
+    planner = planner or make_planner(space, validity, options, algorithm)
     result = planner.solve(start, goal, termination, seed=options.seed, progress=progress)
     if not result.status.solved:
         return PlanningOutcome(result, np.empty((0, 9)), None, 0.0)
@@ -195,7 +207,8 @@ def plan(
         result.path,
         space,
         validity,
-        ShortcutConfig(options.smoothing_attempts, cost_aware=algorithm in COST_AWARE),
+        planner.objective,
+        ShortcutConfig(options.smoothing_attempts),
         seed=options.seed,
         termination=TerminationCondition(float("inf"), should_stop),
     )

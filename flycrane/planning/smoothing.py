@@ -1,11 +1,11 @@
-"""Random shortcut smoothing (Geraerts & Overmars, IJRR 26(8), 2007), optionally cost-aware.
+"""Random shortcut smoothing (Geraerts & Overmars, IJRR 26(8), 2007) under the planner's
+objective.
 
 Each attempt picks two random points along the path (uniform in path length), joins them
 by the straight local path, and keeps the shortcut if its motion, and the two segments the
-cut leaves of the motions it cuts, are valid and -- for
-cost-aware planners -- it does not increase the mechanical work of the replaced stretch
-(both measured at the metrics resolution). Paths only get shorter; with the cost-aware
-rule they never climb more.
+cut leaves of the motions it cuts, are valid and it does not raise the objective's cost of
+the replaced stretch (:mod:`flycrane.planning.objective`: for the cost-aware planners, the
+mechanical work). Paths only get shorter; under mechanical work they never climb more.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from flycrane.errors import FieldProblem, InputError
 from flycrane.planning.interfaces import Validity
-from flycrane.planning.metrics import METRICS_RESOLUTION, mechanical_work, resample_path
+from flycrane.planning.objective import OptimizationObjective
 from flycrane.planning.result import TerminationCondition
 from flycrane.planning.state_space import ConfigurationSpace
 
@@ -27,17 +27,10 @@ class ShortcutConfig:
     """Parameters of random shortcut smoothing."""
 
     attempts: int = 100  #: shortcut attempts
-    cost_aware: bool = True  #: refuse shortcuts that increase mechanical work
-    resolution: float = METRICS_RESOLUTION  #: sampling step for the work comparison
 
     def __post_init__(self) -> None:
-        problems = []
         if self.attempts < 0:
-            problems.append(FieldProblem("attempts", "must be >= 0"))
-        if self.resolution <= 0:
-            problems.append(FieldProblem("resolution", "must be > 0"))
-        if problems:
-            raise InputError(problems, "smoothing options")
+            raise InputError([FieldProblem("attempts", "must be >= 0")], "smoothing options")
 
 
 def _point_at(path: NDArray, cumulative: NDArray, space: ConfigurationSpace, s: float):
@@ -52,6 +45,7 @@ def shortcut_path(
     path: NDArray[np.float64],
     space: ConfigurationSpace,
     validity: Validity,
+    objective: OptimizationObjective,
     config: ShortcutConfig,
     seed: int = 0,
     termination: TerminationCondition | None = None,
@@ -59,9 +53,6 @@ def shortcut_path(
     """The path after ``config.attempts`` random shortcut attempts, shape (M', 9)."""
     path = np.array(path, dtype=float)
     rng = np.random.default_rng(seed)
-
-    def work(stretch: NDArray) -> float:
-        return mechanical_work(validity.cost(resample_path(stretch, space, config.resolution)))
 
     for _ in range(config.attempts):
         if len(path) < 3 or (termination is not None and termination() is not None):
@@ -81,13 +72,12 @@ def shortcut_path(
             and validity.motion_is_valid(q_b, path[j + 1])
         ):
             continue
-        if config.cost_aware:
-            old = np.concatenate([q_a[None], path[i + 1 : j + 1], q_b[None]])
-            added = work(np.stack([q_a, q_b]))
-            # Infinite: a sample between the motion check's own samples is infeasible; never
-            # take such a shortcut (even where the replaced stretch's work is infinite too).
-            if not np.isfinite(added) or added > work(old):
-                continue
+        old = np.concatenate([q_a[None], path[i + 1 : j + 1], q_b[None]])
+        added = objective.motion_cost(np.stack([q_a, q_b]))
+        # Infinite: a sample between the motion check's own samples is infeasible; never
+        # take such a shortcut (even where the replaced stretch's cost is infinite too).
+        if not np.isfinite(added) or added > objective.motion_cost(old):
+            continue
         path = np.concatenate([path[: i + 1], q_a[None], q_b[None], path[j + 1 :]])
     return _without_repeats(path, space)
 

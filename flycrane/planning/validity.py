@@ -29,10 +29,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from flycrane.errors import FlyCraneError
 from flycrane.model.cable_system import CableSystem
-from flycrane.model.cost import configuration_cost
 from flycrane.model.feasibility import Violation, violations
 from flycrane.model.kinematics import COORDINATES, as_configurations
 from flycrane.model.statics import evaluate_statics
+from flycrane.model.statics_kernel import configuration_cost
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.validity_kernel import CompiledValidity
 from flycrane.world.collision import CollisionChecker, Contact

@@ -35,7 +35,6 @@ legs before and after one were "reached" at once).
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from missions.autopilots.ardupilot import changed_limits
 from missions.autopilots.spline import SpeedLimits
@@ -59,14 +58,6 @@ def _position_item(
         y=int(degrees_to_int(lon)),
         z=float(z),
     )
-
-
-def _enu_item(
-    command: MavCmd, enu: NDArray[np.float64], options: MissionOptions, frame: MavFrame
-) -> MissionItem:
-    lat, lon, amsl = geodetic_from_enu(enu, options.origin)
-    z = mission_altitude(options.item_altitude(enu[2], amsl))
-    return _position_item(command, float(lat), float(lon), float(z), frame)
 
 
 def _speed_item(speed_type: int, speed: float) -> MissionItem:
@@ -103,8 +94,8 @@ def build_missions(plan: FlightPlan, options: MissionOptions) -> list[DroneMissi
             _position_item(
                 MavCmd.NAV_WAYPOINT, home_lat[j], home_lon[j], home_amsl[j], MavFrame.GLOBAL_INT
             ),
-            _enu_item(MavCmd.NAV_TAKEOFF, start[j], options, frame),
-            _enu_item(MavCmd.NAV_LOITER_UNLIM, start[j], options, frame),
+            _position_item(MavCmd.NAV_TAKEOFF, lat[0, j], lon[0, j], height[0, j], frame),
+            _position_item(MavCmd.NAV_LOITER_UNLIM, lat[0, j], lon[0, j], height[0, j], frame),
         ]
         previous = plan.settings.initial_speeds
         for k, limits in enumerate(plan.limits[j]):

@@ -128,3 +128,13 @@ def mission_from_json(data: dict[str, Any]) -> DroneMission:
 
 def dumps(document: dict[str, Any]) -> str:
     return json.dumps(document, indent=2) + "\n"
+
+
+def mission_files(mission: DroneMission, max_speed: float) -> dict[str, str]:
+    """The texts of a mission's three files, by suffix: ``waypoints``, ``plan`` (with
+    QGroundControl's cruise speed ``max_speed`` [m/s]) and ``mission.json``."""
+    return {
+        "waypoints": waypoints_text(mission),
+        "plan": dumps(qgc_plan(mission, max_speed)),
+        "mission.json": dumps(mission_json(mission)),
+    }

@@ -15,18 +15,18 @@ recorded by a ground station); :func:`write_report` saves ``report.json``, ``rep
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from missions.export.formats import dumps
 from missions.flight_report.alignment import releases_from_logs, releases_from_sends
-from missions.flight_report.flight_log import write_flight_mcap
-from missions.flight_report.log import read_vehicle_log
-from missions.flight_report.plan import PlannedFlight
+from missions.flight_report.flight_mcap import write_flight_mcap
+from missions.flight_report.planned_flight import PlannedFlight
 from missions.flight_report.plot import plot_flight_report
+from missions.flight_report.record import FlightRecord
 from missions.flight_report.report import FlightReport, flight_report
+from missions.flight_report.vehicle_log import read_vehicle_log
 
 #: What write_report saves, and the viewer's flown-path file.
 REPORT_FILE, PLOT_FILE, FLOWN_FILE = "report.json", "report.png", "flown.json"
@@ -35,26 +35,23 @@ MCAP_FILE = "flight.mcap"
 
 def report_sitl_flight(flight_dir: Path) -> tuple[FlightReport, PlannedFlight]:
     """The report of a SITL flight: releases timed by the harness's sends."""
-    flight = json.loads((flight_dir / "flight.json").read_text(encoding="utf-8"))
-    plan = PlannedFlight.read(Path(flight["task_dir"]))
-    origin = plan.resolved.task.mission.origin
-    vehicles = [read_vehicle_log(flight_dir / v["tlog"], v["name"], origin)
-                for v in flight["vehicles"]]  # fmt: skip
-    sent = [v["release_sent_s"] for v in flight["vehicles"]]
-    releases = releases_from_sends(vehicles, flight["release_seq"], sent)
-    differences = tuple(flight.get("parameter_differences", ()))
-    return flight_report(plan, vehicles, releases, differences), plan
+    flight = FlightRecord.read(flight_dir)
+    plan = PlannedFlight.read(Path(flight.task_dir))
+    origin = plan.task.mission.origin
+    vehicles = [read_vehicle_log(flight_dir / v.tlog, v.name, origin) for v in flight.vehicles]
+    sent = [v.release_sent_s for v in flight.vehicles]
+    releases = releases_from_sends(vehicles, flight.release_seq, sent)
+    return flight_report(plan, vehicles, releases, flight.parameter_differences), plan
 
 
 def report_tlogs(task_dir: Path, tlogs: Sequence[Path]) -> tuple[FlightReport, PlannedFlight]:
     """The report of three drones' tlogs (drone 1, 2, 3) of the missions in ``task_dir``:
     releases from the logs alone."""
     plan = PlannedFlight.read(task_dir)
-    origin = plan.resolved.task.mission.origin
+    origin = plan.task.mission.origin
     vehicles = [read_vehicle_log(path, f"drone{k + 1}", origin) for k, path in enumerate(tlogs)]
-    release_seq = int(json.loads((task_dir / "summary.json").read_text())["mission"]["release"]
-                      ["release_seq"])  # fmt: skip
-    return flight_report(plan, vehicles, releases_from_logs(vehicles, release_seq)), plan
+    releases = releases_from_logs(vehicles, plan.release.release_seq)
+    return flight_report(plan, vehicles, releases), plan
 
 
 def write_report(

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from missions.flight_report.log import VehicleLog
+from missions.flight_report.vehicle_log import VehicleLog
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ mission (:mod:`missions.export.builder`). Per drone, on the vehicle's own clock:
 - the last leg ends when the last waypoint is reached (the drone then holds there).
 
 Two logs say when: the telemetry log (MISSION_CURRENT changes and MISSION_ITEM_REACHED,
-:mod:`missions.flight_report.log`), timed by the midpoint of the stream samples around them
+:mod:`missions.flight_report.vehicle_log`), timed by the midpoint of the stream samples around them
 (within half a stream period, 10 ms at 50 Hz), and ArduPilot's own DataFlash log, whose MSG
 records "Mission: N ..." and "Reached command #N" carry the vehicle's microseconds (within
 its 2.5 ms loop). On the recorded SITL flights the two differ by up to 33 ms per leg, 15 %
@@ -17,18 +17,12 @@ of the shortest (0.21 s) legs, so the DataFlash times are the reference the mock
 against (``tests/missions/data/README.md``); a mock, which writes no DataFlash log, is read
 from its telemetry with a stream at every simulation step.
 
-Run as a module to write the test data of recorded SITL flights (``missions.sitl.flight``
-directories: ``flight.json``, the tlogs, and ``sitl/sitl{i}/logs`` of each simulator)::
-
-    python -m missions.flight_report.leg_times FLIGHT_DIR [FLIGHT_DIR ...] > sitl_leg_times.json
+``benchmarks/sitl_leg_times.py`` writes the test data of recorded SITL flights with it.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import re
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -38,10 +32,11 @@ from numpy.typing import NDArray
 from pymavlink import mavutil
 
 from flycrane.errors import FieldProblem, InputError
-from missions.export.formats import mission_from_json
 from missions.export.items import MavCmd, MissionItem
-from missions.flight_report.log import SeqEvents, read_vehicle_log
+from missions.flight_report.record import FlightRecord
+from missions.flight_report.vehicle_log import SeqEvents, read_vehicle_log
 from missions.options import GeodeticOrigin
+from missions.task.directory import TaskDirectory
 
 #: DataFlash MSG texts of a command's start and of a nav command reached (AP_Mission,
 #: ArduCopter 4.5).
@@ -49,7 +44,7 @@ _STARTED = re.compile(r"Mission: (\d+) ")
 _REACHED = re.compile(r"Reached command #(\d+)")
 #: Item fields kept in the test data, in this order (x, y: 1e-7 degree; the rest float32).
 MISSION_FIELDS = ("frame", "command", "param1", "param2", "param3", "param4", "x", "y", "z")
-#: Parameters the SITL harness sets that are not the plan's (``missions.sitl.flight``).
+#: Parameters the SITL harness sets that are not the plan's (``missions.sitl.harness``).
 SITL_ONLY = frozenset({"ARMING_CHECK"})
 
 
@@ -130,22 +125,21 @@ def mission_rows(items: Sequence[MissionItem]) -> list[list[float]]:
 
 def flight_record(flight_dir: Path) -> dict[str, Any]:
     """The test data of one recorded SITL flight (module docstring)."""
-    flight = json.loads((flight_dir / "flight.json").read_text(encoding="utf-8"))
-    task_dir = Path(flight["task_dir"])
-    release = int(flight["release_seq"])
+    flight = FlightRecord.read(flight_dir)
+    missions = TaskDirectory(flight.task_dir).missions()
+    release = flight.release_seq
     drones = []
-    for index, vehicle in enumerate(flight["vehicles"]):
-        name = vehicle["name"]
-        text = (task_dir / f"{name}.mission.json").read_text(encoding="utf-8")
-        items = mission_from_json(json.loads(text)).items
+    for index, vehicle in enumerate(flight.vehicles):
+        name = vehicle.name
+        items = missions[index].items
         started, reached = dataflash_events(_dataflash_log(flight_dir / "sitl" / f"sitl{index}"))
         # the origin only places positions; leg times need none
-        log = read_vehicle_log(flight_dir / vehicle["tlog"], name, GeodeticOrigin())
+        log = read_vehicle_log(flight_dir / vehicle.tlog, name, GeodeticOrigin())
         drones.append(
             {
                 "name": name,
                 "parameters": {
-                    k: v for k, v in flight["parameters"][name].items() if k not in SITL_ONLY
+                    k: v for k, v in flight.parameters[name].items() if k not in SITL_ONLY
                 },
                 "legs_s": [round(float(t), 4) for t in leg_durations(
                     started, reached, items, release, name)],
@@ -154,26 +148,5 @@ def flight_record(flight_dir: Path) -> dict[str, Any]:
                 "mission": mission_rows(items),
             }
         )  # fmt: skip
-    return {"flight": flight_dir.name, "task": task_dir.name, "release_seq": release,
+    return {"flight": flight_dir.name, "task": Path(flight.task_dir).name, "release_seq": release,
             "drones": drones}  # fmt: skip
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("flights", nargs="+", type=Path, help="flight directories")
-    args = parser.parse_args(argv)
-    try:
-        flights = [flight_record(path) for path in args.flights]
-    except (OSError, KeyError, ValueError, InputError) as error:
-        parser.exit(2, f"error: {error}\n")
-    document = {
-        "about": "per-leg durations of ArduCopter 4.5.7 SITL flights; see README.md",
-        "mission_fields": list(MISSION_FIELDS),
-        "flights": flights,
-    }
-    sys.stdout.write(json.dumps(document, separators=(",", ":")) + "\n")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -47,8 +47,8 @@ from flycrane.model.cost import cost_from_report
 from flycrane.model.direct_kinematics import configuration_from_drone_positions
 from flycrane.model.statics import evaluate_statics
 from missions.flight_report.alignment import Releases
-from missions.flight_report.log import Track, VehicleLog
-from missions.flight_report.plan import PROGRESS_STEP_S, PlannedFlight
+from missions.flight_report.planned_flight import PROGRESS_STEP_S, PlannedFlight
+from missions.flight_report.vehicle_log import PositionSeries, VehicleLog
 from missions.position_error import position_error_model
 from missions.trajectory.motion import forward_progress
 
@@ -173,7 +173,7 @@ def _arrivals(
 
 
 def _flown(
-    tracks: Sequence[Track], releases: Releases, t: NDArray[np.float64]
+    tracks: Sequence[PositionSeries], releases: Releases, t: NDArray[np.float64]
 ) -> NDArray[np.float64]:
     """Drone positions (N, 3, 3) at mission times ``t``."""
     return np.stack(
@@ -233,11 +233,11 @@ def _common_offset_at_rest(
 def _source_figures(
     source: str,
     plan: PlannedFlight,
-    tracks: Sequence[Track],
+    tracks: Sequence[PositionSeries],
     releases: Releases,
     t: NDArray[np.float64],
 ) -> tuple[SourceFigures, dict[str, list[Any]]]:
-    problem = plan.resolved.problem
+    problem = plan.problem
     system = problem.system
     plan_t, plan_drones = plan.progress_samples()
     flown = _flown(tracks, releases, t)
@@ -347,7 +347,7 @@ def flight_report(
         )
     reasons += [f"parameter: {p}" for p in parameter_differences]
     warnings = []
-    model = position_error_model(plan.resolved.task.mission.position_error)
+    model = position_error_model(plan.task.mission.position_error)
     east, north, up = judged.common_offset_at_rest
     if math.hypot(east, north) > model.common_horizontal or abs(up) > model.common_vertical:
         warnings.append(

@@ -58,7 +58,7 @@ from missions.mavlink.messages import (
 from missions.mavlink.transport import open_mavlink
 from missions.mock.config import Dynamics, Geodetic, Imperfections
 from missions.mock.faults import FaultInjection, FaultyChannel
-from missions.mock.flight import NAV_COMMANDS, KinematicFlight
+from missions.mock.kinematic_flight import NAV_COMMANDS, KinematicFlight
 from missions.mock.mission_server import MissionServer, home_item
 from missions.mock.parameters import ParameterStore, settings_from_parameters
 from missions.mock.sim_clock import SimClock

@@ -46,7 +46,7 @@ from missions.mavlink.messages import (
     mission_request_int,
     mission_result_name,
 )
-from missions.mock.flight import LOCATION_COMMANDS, SUPPORTED_COMMANDS
+from missions.mock.kinematic_flight import LOCATION_COMMANDS, SUPPORTED_COMMANDS
 
 logger = logging.getLogger(__name__)
 

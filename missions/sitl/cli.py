@@ -15,9 +15,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from missions.export.formats import dumps
 from missions.flight_report import report_sitl_flight, write_report
-from missions.sitl.flight import SitlFlightOptions, fly_on_sitl
+from missions.sitl.harness import SitlFlightOptions, fly_on_sitl
 from missions.sitl.netns import bring_up_loopback, isolated, isolated_command
 from missions.sitl.settings import SitlSettings
 
@@ -37,7 +36,7 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
     )
     out = Path(args.out)
     flight = fly_on_sitl(Path(args.task_dir), out, settings, options)
-    (out / "flight.json").write_text(dumps(flight.as_dict()), encoding="utf-8")
+    flight.write(out)
     report, plan = report_sitl_flight(out)
     files = write_report(report, plan, out, title=f"SITL flight of {args.task_dir}")
     timing, true = report.timing, report.true or report.estimated

@@ -23,8 +23,10 @@ def _progress(stage: str, report: PlanningProgress | None) -> None:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
+    from missions.task.directory import MCAP_FILE, PROFILE_FILE, SUMMARY_FILE, mission_file
     from missions.task.pipeline import run_task
-    from missions.task.spec import TaskSpec, load_task, resolve_task
+    from missions.task.resolve import resolve_task
+    from missions.task.spec import TaskSpec, load_task
 
     if args.task:
         task, base_dir = load_task(args.task)
@@ -34,7 +36,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     resolved = resolve_task(task, base_dir)
     print(
         f"planning {task.name or 'task'}: scene {resolved.problem.scene.name}, "
-        f"planner {task.planner.algorithm}, seed {task.planner.seed}",
+        f"planner {resolved.algorithm}, seed {task.planner.seed}",
         file=sys.stderr,
     )
     outcome = run_task(task, args.out, progress=_progress, base_dir=base_dir, resolved=resolved)
@@ -48,22 +50,23 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     if outcome.metrics:
         m = outcome.metrics
         print(
-            f"path: avgC {m['avg_cost']:.3g}, maxC {m['max_cost']:.3g}, "
-            f"MW {m['mechanical_work']:.3g}, IC {m['cost_integral']:.3g}"
+            f"path: avgC {m.avg_cost:.3g}, maxC {m.max_cost:.3g}, "
+            f"MW {m.mechanical_work:.3g}, IC {m.cost_integral:.3g}"
         )
     if outcome.mission:
-        mission, tolerance = outcome.mission, outcome.mission["timing_tolerance"]
+        mission, tolerance = outcome.mission, outcome.mission.timing_tolerance
         print(
-            f"mission: {mission['waypoints']} waypoints, {mission['duration']:.1f} s; "
-            f"tolerates {tolerance['start_offset']:.2f} s start offset "
-            f"({tolerance['start_offset_case']}) and {100 * tolerance['speed_mismatch']:.1f} % "
-            f"speed mismatch ({tolerance['speed_mismatch_case']})"
+            f"mission: {mission.waypoints} waypoints, {mission.duration:.1f} s; "
+            f"tolerates {tolerance.start_offset:.2f} s start offset "
+            f"({tolerance.start_offset_case}) and {100 * tolerance.speed_mismatch:.1f} % "
+            f"speed mismatch ({tolerance.speed_mismatch_case})"
         )
         for k in (1, 2, 3):
-            print(f"  drone {k}: {out / f'drone{k}.waypoints'}  {out / f'drone{k}.plan'}")
-        print(f"  MCAP log (Foxglove): {out / 'mission.mcap'}")
-        print(f"  profile plot: {out / 'profile.png'}")
-    print(f"summary: {out / 'summary.json'} ({time.perf_counter() - clock:.1f} s in all)")
+            waypoints, plan = mission_file(k, "waypoints"), mission_file(k, "plan")
+            print(f"  drone {k}: {out / waypoints}  {out / plan}")
+        print(f"  MCAP log (Foxglove): {out / MCAP_FILE}")
+        print(f"  profile plot: {out / PROFILE_FILE}")
+    print(f"summary: {out / SUMMARY_FILE} ({time.perf_counter() - clock:.1f} s in all)")
     return 0 if outcome.status == "done" else 1
 
 

@@ -1,9 +1,7 @@
 """A manipulation task: system, scene, start and goal, planner and mission options.
 
-The same schema is the body of ``POST /v1/tasks`` and the file ``flycrane plan`` reads.
-:func:`resolve_task` turns it into a planning problem and checks start and goal, raising
-errors that name the field (preset names, system or scene fields) or the violated
-constraint and colliding bodies (start and goal).
+The same schema is the body of ``POST /v1/tasks`` and the file ``flycrane plan`` reads;
+:mod:`missions.task.resolve` makes it a planning problem.
 """
 
 from __future__ import annotations
@@ -11,24 +9,16 @@ from __future__ import annotations
 import json
 import tomllib
 import unicodedata
-from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from flycrane.errors import FieldProblem, InputError
-from flycrane.model.system_spec import SystemSpec, problems_from_validation_error, system_preset
-from flycrane.planning.algorithms.bitrrt import MESH_REASON, MeshScene
+from flycrane.model.system_spec import SystemSpec, problems_from_validation_error
 from flycrane.planning.planners import PlannerOptions
-from flycrane.planning.poses import configuration_from_pose
-from flycrane.planning.problem import PlanningProblem
 from flycrane.quantities import Configuration, Orientation, Point
-from flycrane.world.scene import Mesh, SceneSpec, list_scenes, load_scene
+from flycrane.world.scene import Mesh, SceneSpec, list_scenes
 from missions.options import MissionOptions
-from missions.position_error import position_error_model
-from missions.trajectory.vertical_legs import VerticalLeg, clear_end
 
 
 class PlatformPose(BaseModel):
@@ -61,22 +51,6 @@ class TaskSpec(BaseModel):
         if bad is not None:
             raise ValueError(f"must not contain control characters (found U+{ord(bad):04X})")
         return value
-
-
-@dataclass(frozen=True)
-class ResolvedTask:
-    """A task made concrete: the problem and the checked configurations to plan between.
-
-    Where the given start or goal lies within the obstacle clearance of a surface, the plan
-    starts or ends at the pose above it, and ``lift_off`` / ``set_down`` is the vertical leg
-    the mission flies between the two (:mod:`missions.trajectory.vertical_legs`)."""
-
-    task: TaskSpec
-    problem: PlanningProblem
-    start: NDArray[np.float64]
-    goal: NDArray[np.float64]
-    lift_off: VerticalLeg | None = None
-    set_down: VerticalLeg | None = None
 
 
 def task_from_dict(data: dict, source: str | None = None) -> TaskSpec:
@@ -127,78 +101,3 @@ def require_served_task(task: TaskSpec) -> None:
     problems = served_task_problems(task)
     if problems:
         raise InputError(problems)
-
-
-def task_specs(
-    task: TaskSpec, base_dir: Path | None = None
-) -> tuple[SystemSpec, SceneSpec, Path | None]:
-    """The task's system and scene with presets loaded, and the directory its scene's mesh
-    files are relative to.
-
-    Raises
-    ------
-    InputError
-        Unknown system or scene preset (field ``system`` or ``scene``).
-    """
-    system = system_preset(task.system) if isinstance(task.system, str) else task.system
-    if not isinstance(task.scene, str):
-        return system, task.scene, base_dir
-    try:
-        scene, scene_dir = load_scene(task.scene)
-    except InputError as error:
-        raise InputError([FieldProblem("scene", p.reason) for p in error.problems]) from None
-    return system, scene, scene_dir
-
-
-def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
-    """Build the problem and check start and goal (every error names its field).
-
-    Raises
-    ------
-    InputError
-        Unknown preset, or a start/goal of the wrong shape.
-    InvalidConfigurationError
-        Start or goal infeasible, out of bounds or in collision (``what`` says which).
-    """
-    system, scene, scene_dir = task_specs(task, base_dir)
-    # The plan keeps the clearance the position-error model asks for (or the scene's, if
-    # larger): docs/missions.md "Clearance".
-    clearance = max(
-        scene.collision.obstacle_clearance,
-        position_error_model(task.mission.position_error).obstacle_clearance,
-    )
-    if clearance != scene.collision.obstacle_clearance:
-        try:
-            scene = scene.model_copy(
-                update={
-                    "collision": scene.collision.model_copy(
-                        update={"obstacle_clearance": clearance}
-                    )
-                }
-            )
-            scene = SceneSpec.model_validate(scene.model_dump())
-        except ValidationError as error:
-            raise InputError(
-                [FieldProblem("mission.position_error", p.reason)
-                 for p in problems_from_validation_error(error)]
-            ) from None  # fmt: skip
-    problem = PlanningProblem.from_scene(scene, system, scene_dir)
-    try:
-        task.planner.algorithm_for(problem.validity.has_meshes)
-    except MeshScene:
-        raise InputError([FieldProblem("planner.algorithm", MESH_REASON)]) from None
-    ends, legs = [], []
-    ends_given = (("start", task.start, scene.start), ("goal", task.goal, scene.goal))
-    for what, given, default in ends_given:
-        if isinstance(given, PlatformPose):
-            real = problem.validity.with_clearance(0.0)
-            q = configuration_from_pose(
-                problem.space, real, given.position, given.orientation, what
-            )
-        else:
-            q = np.array(default if given is None else given, dtype=float)
-        approach = task.mission.set_down_approach if what == "goal" else 0.0
-        planned, leg = clear_end(q, problem.validity, what, approach)
-        ends.append(planned)
-        legs.append(leg)
-    return ResolvedTask(task, problem, ends[0], ends[1], lift_off=legs[0], set_down=legs[1])

@@ -49,7 +49,7 @@ from missions.options import MissionOptions
 from missions.trajectory.motion import DroneMotion, formation_progress
 from missions.trajectory.tracks import Track, rotation_angles
 from missions.trajectory.vertical_legs import RAISE_STEP, VerticalLeg
-from missions.trajectory.waypoints import LegCheck, Validity, check_flight, reduce_to_waypoints
+from missions.trajectory.waypoints import LegCheck, SafetyCheck, check_flight, reduce_to_waypoints
 
 #: Most splits of legs whose modelled flight failed its check, before giving up.
 MAX_SPLITS = 40
@@ -62,6 +62,14 @@ class SetDown:
     leg: VerticalLeg
     start: float  #: mission time of the arrival at the raised goal [s]
     end: float  #: of the arrival on the goal [s]
+
+    def as_dict(self) -> dict:
+        return {**self.leg.as_dict(), "start_time": self.start, "end_time": self.end}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> SetDown:
+        """Inverse of :meth:`as_dict`."""
+        return cls(VerticalLeg.from_dict(data), data["start_time"], data["end_time"])
 
 
 @dataclass(frozen=True)
@@ -191,8 +199,8 @@ def _attempt(
     system: CableSystem,
     track: Track,
     waypoints: _Waypoints,
-    validity: Validity,
-    landing: Validity,
+    validity: SafetyCheck,
+    landing: SafetyCheck,
     options: MissionOptions,
     settings: ArduCopterSettings,
     flights: LegFlights,
@@ -228,11 +236,11 @@ def _attempt(
 def plan_flight(
     system: CableSystem,
     track: Track,
-    validity: Validity,
+    validity: SafetyCheck,
     options: MissionOptions,
     settings: ArduCopterSettings | None = None,
     set_down: VerticalLeg | None = None,
-    landing: Validity | None = None,
+    landing: SafetyCheck | None = None,
 ) -> FlightPlan:
     """Waypoints, timing and limits for the three drones (module docstring); a
     ``set_down`` is judged by ``landing`` (the validity without its surfaces)."""

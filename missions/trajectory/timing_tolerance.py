@@ -30,9 +30,7 @@ from flycrane.model.direct_kinematics_kernel import compiled_direct_kinematics
 from missions.options import MissionOptions
 from missions.trajectory.flight_plan import FlightPlan
 from missions.trajectory.tracks import Track
-from missions.trajectory.waypoints import planned_configurations
-
-Validity = Callable[[NDArray[np.float64]], NDArray[np.bool_]]
+from missions.trajectory.waypoints import SafetyCheck, planned_configurations
 
 #: Bisection stops when the bracket is this small, relative to its search range.
 TOLERANCE_RESOLUTION = 1e-3
@@ -60,7 +58,7 @@ def flight_is_safe(
     system: CableSystem,
     track: Track,
     plan: FlightPlan,
-    validity: Validity,
+    validity: SafetyCheck,
     clock: Callable[[NDArray], NDArray],
     step: float,
 ) -> bool:
@@ -109,7 +107,7 @@ def timing_tolerance(
     system: CableSystem,
     track: Track,
     plan: FlightPlan,
-    validity: Validity,
+    validity: SafetyCheck,
     options: MissionOptions,
     max_offset: float = 5.0,
     max_mismatch: float = 0.5,

@@ -52,13 +52,27 @@ class VerticalLeg:
             "height": self.height,
         }
 
+    @classmethod
+    def from_dict(cls, data: dict) -> VerticalLeg:
+        """Inverse of :meth:`as_dict`."""
+        return cls(
+            np.array(data["low"], dtype=float),
+            np.array(data["high"], dtype=float),
+            tuple(data["surfaces"]),
+        )
+
 
 def clear_end(
-    q: NDArray[np.float64], validity: ValidityChecker, what: str, approach: float = 0.0
+    q: NDArray[np.float64],
+    validity: ValidityChecker,
+    real: ValidityChecker,
+    what: str,
+    approach: float = 0.0,
 ) -> tuple[NDArray[np.float64], VerticalLeg | None]:
     """The pose to plan from or to for a start or goal ``q``, and its vertical leg if it
     needs one (module docstring): the lowest clear pose above ``q``, raised by up to
-    ``approach`` [m] more where that stays clear.
+    ``approach`` [m] more where that stays clear. ``validity`` keeps the plan's clearance,
+    ``real`` is the same on the real obstacles.
 
     Raises
     ------
@@ -69,7 +83,6 @@ def clear_end(
     planning = validity.explain(q)
     if planning.valid:
         return q, None
-    real = validity.with_clearance(0.0)
     real.require_valid(q, what)
     if planning.out_of_bounds or planning.violations:
         raise InvalidConfigurationError(what, planning)

@@ -32,7 +32,9 @@ from flycrane.model.kinematics import platform_points_from_configuration
 from missions.options import MissionOptions
 from missions.trajectory.tracks import Track
 
-Validity = Callable[[NDArray[np.float64]], NDArray[np.bool_]]
+#: Whether each configuration (N, 9) keeps the load safe (N,): a validity checker's
+#: ``is_safe`` at the clearance a check is judged by.
+SafetyCheck = Callable[[NDArray[np.float64]], NDArray[np.bool_]]
 
 
 @dataclass(frozen=True)
@@ -88,7 +90,7 @@ def check_flight(
     track: Track,
     drones: NDArray[np.float64],
     times: NDArray[np.float64],
-    validity: Validity,
+    validity: SafetyCheck,
 ) -> LegCheck:
     """Reconstruct the load under given drone positions (C, 3, 3) at times (C,) and measure."""
     planned = planned_configurations(track, times)
@@ -107,7 +109,7 @@ def check_flight(
 
 
 def reduce_to_waypoints(
-    system: CableSystem, track: Track, validity: Validity, options: MissionOptions
+    system: CableSystem, track: Track, validity: SafetyCheck, options: MissionOptions
 ) -> WaypointPlan:
     """Fewest waypoints (greedy recursive splitting) whose legs pass every check."""
     last = len(track.time) - 1

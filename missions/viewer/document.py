@@ -10,7 +10,6 @@ local ENU frame (z up), quaternions (x, y, z, w), drones and cables in the desig
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +26,9 @@ from flycrane.model.kinematics import (
 )
 from flycrane.world.bodies import platform_prism
 from flycrane.world.scene import Mesh, SceneSpec, Shape
-from missions.task.spec import TaskSpec, task_specs
+from missions.task.directory import TaskDirectory, TaskDirectoryError, TaskOutcome, Tracks
+from missions.task.resolve import task_specs
+from missions.task.spec import TaskSpec
 from missions.trajectory.annotations import annotate
 from missions.trajectory.tracks import samples_at_rate
 from missions.viewer.flown import FlownTrack, FlownTrackError, load_flown, reconstruct
@@ -142,23 +143,12 @@ def frames_document(
     }
 
 
-def _read_json(task_dir: Path, name: str) -> dict[str, Any]:
-    try:
-        return json.loads((task_dir / name).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ViewUnavailableError(
-            f"{task_dir.name}: no {name} (the task was not planned to the end)"
-        ) from None
-
-
 def _planned_frames(
-    system: CableSystem, tracks: dict[str, Any], rate: float, max_frames: int
+    system: CableSystem, tracks: Tracks, rate: float, max_frames: int
 ) -> dict[str, Any]:
     """The dense planned track at about ``rate`` Hz (fewer frames past ``max_frames``),
     always including the waypoints' samples."""
-    time = np.asarray(tracks["dense"]["time"], dtype=float)
-    q = np.asarray(tracks["dense"]["configurations"], dtype=float)
-    waypoint_time = np.asarray(tracks["time"], dtype=float)
+    time, q, waypoint_time = tracks.dense_time, tracks.dense_configurations, tracks.time
     at = np.clip(np.searchsorted(time, waypoint_time), 0, len(time) - 1)
     if not np.allclose(time[at], waypoint_time, rtol=0.0, atol=1e-9):
         raise ViewUnavailableError("tracks.json: waypoint times are not samples of the track")
@@ -181,18 +171,20 @@ def _flown_frames(
     return {"source": flown.source, "converged": load.converged.tolist(), **document}
 
 
-def _facts(summary: dict[str, Any], scene: SceneSpec, flown: FlownTrack | None) -> list[dict]:
+def _facts(summary: TaskOutcome, scene: SceneSpec, flown: FlownTrack | None) -> list[dict]:
     """What the page's header lists: label and preformatted value."""
-    mission, metrics = summary.get("mission") or {}, summary.get("metrics") or {}
-    statistics = summary.get("planner_statistics") or {}
+    mission, metrics = summary.mission, summary.metrics
+    seconds = summary.planner_statistics.get("time", 0)
     facts = [
         ("scene", scene.name),
-        ("planner", f"{summary.get('planner_status', '?')} in {statistics.get('time', 0):.2f} s"),
+        ("planner", f"{summary.planner_status or '?'} in {seconds:.2f} s"),
         (
             "mission",
-            f"{mission.get('waypoints', '?')} waypoints, {mission.get('duration', 0):.2f} s",
+            f"{mission.waypoints} waypoints, {mission.duration:.2f} s"
+            if mission
+            else "? waypoints, 0.00 s",
         ),
-        ("max cost", f"{metrics.get('max_cost', float('nan')):.4g}"),
+        ("max cost", f"{metrics.max_cost if metrics else float('nan'):.4g}"),
         ("obstacle clearance", f"{scene.collision.obstacle_clearance:g} m"),
     ]
     if flown is not None:
@@ -232,8 +224,11 @@ def view_document(
     task_dir = Path(task_dir)
     system_spec, scene, scene_dir = task_specs(task, base_dir)
     system = CableSystem.from_spec(scene.system_spec(system_spec))
-    tracks = _read_json(task_dir, "tracks.json")
-    summary = _read_json(task_dir, "summary.json")
+    directory = TaskDirectory(task_dir)
+    try:
+        tracks, summary = directory.tracks(), directory.summary()
+    except TaskDirectoryError as error:
+        raise ViewUnavailableError(f"{error} (the task was not planned to the end)") from None
     notes = []
     try:
         flown = load_flown(task_dir)

@@ -356,7 +356,7 @@ def test_a_cancel_while_generating_ends_cancelled(tmp_path, monkeypatch):
         progress("generating", None)
         generating.set()
         release.wait(60)
-        return missions.task.pipeline.TaskOutcome("done", planner_status="exact_solution")
+        return missions.task.directory.TaskOutcome("done", planner_status="exact_solution")
 
     monkeypatch.setattr(missions.task.pipeline, "run_task", held_pipeline)
     settings = Settings(data_dir=tmp_path, allowed_hosts=(TEST_HOST,))

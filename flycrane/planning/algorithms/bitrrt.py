@@ -85,6 +85,7 @@ from flycrane.planning.algorithms.bitrrt_kernel import (
 )
 from flycrane.planning.algorithms.tree import path_from_root
 from flycrane.planning.interfaces import CompiledChecker
+from flycrane.planning.objective import MechanicalWork, OptimizationObjective
 from flycrane.planning.result import (
     PlannerResult,
     PlannerStatistics,
@@ -222,6 +223,7 @@ class BiTRRT:
             connection_range=config.connection_range or 10.0 * step,
         )
         self.space, self.validity, self.name = space, validity, name
+        self.objective: OptimizationObjective = MechanicalWork(validity.cost, space)
 
     def _params(self, free_level: float, caps: NDArray[np.float64]) -> Params:
         """The loop's numbers: the config's fields of the same names (their Nones filled in

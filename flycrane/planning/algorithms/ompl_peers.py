@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 
 from flycrane.planning.algorithms.trrt import STEP_FRACTION, TRRTConfig
 from flycrane.planning.interfaces import Validity
+from flycrane.planning.objective import MechanicalWork, OptimizationObjective, PathLength
 from flycrane.planning.result import (
     PlannerResult,
     PlannerStatistics,
@@ -76,6 +77,9 @@ class OmplPlanner:
         self.space, self.validity, self.algorithm = space, validity, algorithm
         self.config = config or (TRRTConfig() if algorithm == "trrt" else TRRTConfig.rrt())
         self.name = f"ompl-{algorithm}"
+        self.objective: OptimizationObjective = (
+            MechanicalWork(validity.cost, space) if algorithm == "trrt" else PathLength(space)
+        )
 
     def solve(
         self,

@@ -56,6 +56,7 @@ from numpy.typing import NDArray
 from flycrane.errors import FieldProblem, InputError
 from flycrane.planning.algorithms.tree import Tree
 from flycrane.planning.interfaces import Validity
+from flycrane.planning.objective import MechanicalWork, OptimizationObjective, PathLength
 from flycrane.planning.result import (
     PlannerResult,
     PlannerStatistics,
@@ -176,6 +177,11 @@ class TRRT:
         )
         self.config = replace(config, step=self.step)
         self.name = name or ("trrt" if self.config.transition_test else "rrt")
+        self.objective: OptimizationObjective = (
+            MechanicalWork(validity.cost, space)
+            if self.config.transition_test
+            else PathLength(space)
+        )
 
     def solve(
         self,

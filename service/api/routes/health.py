@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Depends, Response
+from fastapi import APIRouter, Response
 from fastapi.responses import JSONResponse
 from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
 from sqlalchemy import text
 from sqlalchemy.exc import SQLAlchemyError
 
-from service.deps import ServiceState, get_state
+from service.deps import StateDep
 from service.schemas import Health
 
 router = APIRouter(tags=["health"])
@@ -19,7 +19,7 @@ router = APIRouter(tags=["health"])
     response_model=Health,
     responses={503: {"model": Health, "description": "the service cannot run tasks now"}},
 )
-def healthz(state: ServiceState = Depends(get_state)) -> Health | JSONResponse:
+def healthz(state: StateDep) -> Health | JSONResponse:
     """Whether the service can take and run tasks: its database answers and its worker pool
     works (a pool broken by a dead worker is replaced; one that cannot be is reported)."""
     problems = []
@@ -49,6 +49,6 @@ def healthz(state: ServiceState = Depends(get_state)) -> Health | JSONResponse:
         200: {"content": {CONTENT_TYPE_LATEST.split(";")[0]: {"schema": {"type": "string"}}}}
     },
 )
-def metrics(state: ServiceState = Depends(get_state)) -> Response:
+def metrics(state: StateDep) -> Response:
     """Prometheus text format: tasks per status, planning times, submissions."""
     return Response(generate_latest(state.metrics.registry), media_type=CONTENT_TYPE_LATEST)

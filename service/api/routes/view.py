@@ -13,20 +13,14 @@ from __future__ import annotations
 
 import html
 
-from fastapi import APIRouter, Depends, Query
+from fastapi import APIRouter, Query
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 
-from missions.task.spec import TaskSpec
-from missions.viewer import (
-    ViewUnavailableError,
-    served_page,
-    standalone_page,
-    static_file,
-    view_document,
-)
+from missions.viewer import served_page, static_file
 from missions.viewer.page import ListedTask, task_list_page
-from service.deps import ServiceState, get_state
-from service.errors import ArtifactNotFoundError, TaskNotFoundError, TaskNotReadyError
+from service.artifacts import view_of
+from service.deps import ServiceState, StateDep
+from service.errors import ArtifactNotFoundError, TaskNotFoundError
 from service.storage import MAX_OFFSET, TaskRecord, TaskStatus
 
 router = APIRouter(tags=["viewer"])
@@ -39,34 +33,18 @@ def _document(state: ServiceState, task_id: str) -> dict:
     record = state.store.get(task_id)
     if record is None:
         raise TaskNotFoundError(f"no task {task_id!r}")
-    return _done_document(state, record)
-
-
-def _done_document(state: ServiceState, record: TaskRecord) -> dict:
-    if record.status is not TaskStatus.DONE:
-        raise TaskNotReadyError(f"task {record.id} is {record.status}, not done: nothing to view")
-    try:
-        return view_document(
-            TaskSpec.model_validate(record.request), state.jobs.task_dir(record.id)
-        )
-    except ViewUnavailableError as error:
-        raise ArtifactNotFoundError(str(error)) from None
-
-
-def bundle_view(state: ServiceState, record: TaskRecord) -> str:
-    """The standalone view.html of a done task, for its bundle.zip."""
-    return standalone_page(_done_document(state, record))
+    return view_of(state.jobs, record)
 
 
 @router.get("/v1/tasks/{task_id}/view", response_class=HTMLResponse)
-def view_task(task_id: str, state: ServiceState = Depends(get_state)) -> HTMLResponse:
+def view_task(task_id: str, state: StateDep) -> HTMLResponse:
     """The viewer page of a done task: scene, planned (and flown) motion, profiles."""
     page = served_page(_document(state, task_id), _STATIC_FROM_TASK, "../../viewer")
     return HTMLResponse(page)
 
 
 @router.get("/v1/tasks/{task_id}/view.json")
-def view_task_data(task_id: str, state: ServiceState = Depends(get_state)) -> JSONResponse:
+def view_task_data(task_id: str, state: StateDep) -> JSONResponse:
     """The viewer's document of a done task (docs/viewer.md)."""
     return JSONResponse(_document(state, task_id))
 
@@ -91,9 +69,9 @@ def _listed(record: TaskRecord) -> ListedTask:
 
 @router.get("/v1/viewer", response_class=HTMLResponse)
 def task_list(
+    state: StateDep,
     offset: int = Query(0, ge=0, le=MAX_OFFSET),
     limit: int = Query(50, ge=1, le=500),
-    state: ServiceState = Depends(get_state),
 ) -> HTMLResponse:
     """The tasks, newest first, with links to their views and bundles."""
     records, total = state.store.list(None, offset, limit)

@@ -8,8 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from flycrane.model.cable_system import CableSystem
-from flycrane.model.cost import CostForm, configuration_cost, cost_from_report
+from flycrane.model.cost import CostForm, cost_from_report
 from flycrane.model.statics import evaluate_statics
+from flycrane.model.statics_kernel import configuration_cost
 from tests.conftest import random_configurations
 
 configurations = st.tuples(

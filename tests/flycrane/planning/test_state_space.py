@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from flycrane.planning.interpolation import interpolate, wrap_angle
 from flycrane.planning.metrics import mechanical_work, path_metrics, resample_path
+from flycrane.planning.objective import MechanicalWork, PathLength
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
 from flycrane.planning.state_space import ConfigurationSpace
 from tests.flycrane.planning.toy_validity import ToyValidity
@@ -84,7 +85,8 @@ def test_shortcut_never_lengthens_and_stays_valid(system):
         [[x, 2.0 * (i % 2), 4.0, 0, 0, 0, 1, 1, 1] for i, x in enumerate(np.linspace(-4, 4, 9))]
     )
     for cost_aware in (False, True):
-        smooth = shortcut_path(zigzag, space, validity, ShortcutConfig(50, cost_aware), seed=3)
+        objective = MechanicalWork(validity.cost, space) if cost_aware else PathLength(space)
+        smooth = shortcut_path(zigzag, space, validity, objective, ShortcutConfig(50), seed=3)
         before = path_metrics(zigzag, space, validity.cost)
         after = path_metrics(smooth, space, validity.cost)
         assert after.length < before.length
@@ -107,5 +109,7 @@ def test_shortcut_checks_the_segments_its_cut_leaves(system):
                      [4.0, 4, 4, 0, 0, 0, 1, 1, 1]])  # fmt: skip
     assert all(validity.motion_is_valid(a, b) for a, b in itertools.pairwise(path))
     for seed in range(50):
-        smooth = shortcut_path(path, space, validity, ShortcutConfig(20, False), seed=seed)
+        smooth = shortcut_path(
+            path, space, validity, PathLength(space), ShortcutConfig(20), seed=seed
+        )
         assert all(validity.motion_is_valid(a, b) for a, b in itertools.pairwise(smooth)), seed

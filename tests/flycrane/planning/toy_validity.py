@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from flycrane.model.cable_system import CableSystem
-from flycrane.model.cost import configuration_cost
 from flycrane.model.kinematics import drone_positions_from_configuration
+from flycrane.model.statics_kernel import configuration_cost
 from flycrane.planning.state_space import ConfigurationSpace
 
 RESOLUTION = 0.05

@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 from flycrane.world.scene import load_scene
 from missions.export.builder import build_missions
 from missions.export.formats import mission_from_json
-from missions.export.mcap_log import LogInputs, write_mcap
+from missions.export.mission_mcap import LogInputs, write_mcap
 from missions.options import MissionOptions
 from missions.trajectory.annotations import annotate
 from tests.missions.helpers import approximate_geodetic
@@ -230,7 +230,7 @@ from flycrane.model.cable_system import CableSystem
 from flycrane.world.scene import load_scene
 from missions.trajectory.annotations import annotate
 from missions.export.builder import build_missions
-from missions.export.mcap_log import LogInputs, write_mcap
+from missions.export.mission_mcap import LogInputs, write_mcap
 from missions.options import MissionOptions
 from missions.trajectory.tracks import Track
 from missions.autopilots.spline import SpeedLimits

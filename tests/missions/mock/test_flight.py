@@ -21,7 +21,7 @@ from missions.mavlink.transfer import download_mission
 from missions.mavlink.transport import VehicleLink
 from missions.mock.autopilot import MockConfig
 from missions.mock.config import Imperfections
-from missions.mock.flight import seconds_until_utc
+from missions.mock.kinematic_flight import seconds_until_utc
 from missions.mock.sim_clock import SimClock
 from tests.missions.loopback import HOME
 

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from missions.export.items import MavCmd, MavFrame
 from missions.mock.config import Dynamics, Imperfections
-from missions.mock.flight import KinematicFlight
+from missions.mock.kinematic_flight import KinematicFlight
 from missions.mock.straight import SpeedProfile
 from tests.missions.loopback import HOME
 

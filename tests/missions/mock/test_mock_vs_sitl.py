@@ -21,7 +21,7 @@ import pytest
 
 from missions.export.items import DroneMission, MissionItem
 from missions.flight_report.leg_times import MISSION_FIELDS, leg_durations, spline_waypoints
-from missions.flight_report.log import read_vehicle_log
+from missions.flight_report.vehicle_log import read_vehicle_log
 from missions.mavlink.commands import release, set_message_interval
 from missions.mavlink.fleet import Fleet, on_every_vehicle
 from missions.mavlink.params import set_parameters
@@ -93,7 +93,7 @@ class Progress:
 
 
 def fly_on_mocks(flight: dict, spawn_mock, directory: Path) -> dict[str, np.ndarray]:
-    """Fly the flight's missions on three mocks as ``missions.sitl.flight`` flies SITL: set
+    """Fly the flight's missions on three mocks as ``missions.sitl.harness`` flies SITL: set
     the parameters, upload, arm, start, release from the hold with MISSION_SET_CURRENT; the
     legs of every drone, read from its tlog."""
     clock = SimClock(speedup=20.0, step_s=STEP_S)

@@ -59,10 +59,11 @@ from missions.mavlink.telemetry import SeqEvent, VehicleTelemetry
 from missions.mavlink.tlog import TlogWriter
 from missions.mock.autopilot import MockAutopilot, MockConfig
 from missions.mock.config import Imperfections
-from missions.mock.flight import Geodetic
+from missions.mock.kinematic_flight import Geodetic
 from missions.mock.sim_clock import SimClock
 from missions.task.pipeline import run_task
-from missions.task.spec import ResolvedTask, TaskSpec, resolve_task
+from missions.task.resolve import ResolvedTask, resolve_task
+from missions.task.spec import TaskSpec
 from missions.trajectory.tracks import Track
 from missions.trajectory.waypoints import planned_configurations
 from tests.missions.loopback import free_udp_port, no_leaked_threads  # noqa: F401 (autouse fixture)
@@ -142,7 +143,7 @@ def export(task: TaskSpec, tmp_path_factory: pytest.TempPathFactory) -> Exported
     q = np.array(tracks["dense"]["configurations"])
     track = Track(np.array(tracks["dense"]["time"]), q,
                   drone_positions_from_configuration(resolved.problem.system, q))  # fmt: skip
-    assert tracks["timing_tolerance"] == outcome.mission["timing_tolerance"]
+    assert tracks["timing_tolerance"] == outcome.mission.timing_tolerance.as_dict()
     summary = json.loads((out / "summary.json").read_text())["mission"]
     return Exported(
         resolved, missions,

@@ -16,7 +16,7 @@ from missions.mavlink.fleet import Fleet
 from missions.mavlink.messages import mission_set_current
 from missions.mock.autopilot import MockConfig
 from missions.mock.config import Dynamics, Imperfections
-from missions.mock.flight import KinematicFlight, default_settings
+from missions.mock.kinematic_flight import KinematicFlight, default_settings
 from missions.mock.sim_clock import SimClock
 from tests.missions.loopback import HOME
 

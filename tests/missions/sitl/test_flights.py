@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from flycrane.planning.planners import PlannerOptions
-from missions.flight_report.plan import PlannedFlight
+from missions.flight_report.planned_flight import PlannedFlight
 from missions.options import MissionOptions
 from missions.position_error import PRESETS
 from missions.sitl.netns import namespaces_available

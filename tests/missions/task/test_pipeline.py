@@ -26,8 +26,9 @@ from missions.autopilots.spline import SpeedLimits
 from missions.export.formats import mission_from_json
 from missions.export.items import MavCmd
 from missions.options import MissionOptions
-from missions.task.pipeline import _self_contained, run_task
-from missions.task.spec import TaskSpec, resolve_task
+from missions.task.pipeline import run_task
+from missions.task.resolve import resolve_task
+from missions.task.spec import TaskSpec
 from tests.missions.helpers import applied_limits, approximate_geodetic
 
 TASK = TaskSpec(planner=PlannerOptions(seed=0, time_budget=60))
@@ -53,17 +54,17 @@ def test_default_rescue_task_is_done_with_every_artifact(rescue):
     assert (out / "profile.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert summary["status"] == "done"
-    assert summary["mission"] == json.loads(json.dumps(outcome.mission))
+    assert summary["mission"] == json.loads(json.dumps(outcome.mission.as_dict()))
     assert 0.0 < summary["mission"]["timing_tolerance"]["start_offset"]
 
 
 def test_rescue_files_load_with_their_readers_and_agree(rescue):
     outcome, out = rescue
-    waypoints = outcome.mission["waypoints"]
+    waypoints = outcome.mission.waypoints
     for j in (1, 2, 3):
         loader = mavwp.MAVWPLoader()
         count = loader.load(str(out / f"drone{j}.waypoints"))
-        assert count == outcome.mission["items_per_drone"][j - 1]
+        assert count == outcome.mission.items_per_drone[j - 1]
         commands = [loader.wp(i).command for i in range(count)]
         # home, then one spline waypoint per leg
         assert commands.count(MavCmd.NAV_WAYPOINT) == 1
@@ -90,7 +91,7 @@ def test_rescue_missions_hold_above_the_start_and_set_the_bridge_down_on_the_roo
     outcome, out = rescue
     scene, _ = load_scene("rescue")
     system = CableSystem.from_spec(scene.system_spec())
-    summary = outcome.mission
+    summary = outcome.mission.as_dict()
     assert summary["obstacle_clearance"] == pytest.approx(0.08)
     assert summary["lift_off"]["surfaces"] == ["ground"]
     assert summary["set_down"]["surfaces"] == ["east building", "west building"]
@@ -175,7 +176,7 @@ def test_bitrrt_asked_for_in_a_scene_with_meshes_is_refused_naming_the_field():
     resolved = resolve_task(task)
     assert resolved.problem.validity.has_meshes
     # task.json names the planner, and reads back as a task (the flight report's)
-    written = _self_contained(task, resolved)
+    written = resolved.self_contained().model_dump(mode="json")
     assert written["planner"]["algorithm"] == "trrt"
     resolve_task(TaskSpec.model_validate(written))
 

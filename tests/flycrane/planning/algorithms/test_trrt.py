@@ -174,10 +174,11 @@ def test_trrt_paths_cost_less_than_rrt_paths_over_seeds(space, wall):
     for name, config in (("trrt", TRRTConfig()), ("rrt", TRRTConfig.rrt())):
         costs = []
         for seed in seeds:
-            result = TRRT(space, wall, config).solve(START, GOAL, TerminationCondition(30.0), seed)
+            planner = TRRT(space, wall, config)
+            result = planner.solve(START, GOAL, TerminationCondition(30.0), seed)
             assert result.status.solved, (name, seed)
             smooth = shortcut_path(
-                result.path, space, wall, ShortcutConfig(cost_aware=config.transition_test), seed
+                result.path, space, wall, planner.objective, ShortcutConfig(), seed
             )
             costs.append(path_metrics(smooth, space, wall.cost).avg_cost)
         avg[name] = np.mean(costs)

@@ -34,18 +34,16 @@ the wall clock) is measured and a flight slower than ``min_rate`` of the speed-u
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from missions.export.formats import mission_from_json
-from missions.export.items import DroneMission, MavCmd, MissionItem
-from missions.export.parameter_file import read_parameter_file
+from missions.export.items import DroneMission, MissionItem
+from missions.flight_report.record import FlightRecord, VehicleRecord
 from missions.geodesy import DEGREE_UNIT, ardupilot_altitude, enu_from_geodetic
 from missions.mavlink.commands import ReleaseReport, release, set_message_interval
 from missions.mavlink.fleet import Fleet, on_every_vehicle
@@ -56,6 +54,7 @@ from missions.options import GeodeticOrigin
 from missions.sitl.errors import SitlError
 from missions.sitl.process import SitlGroup, SitlHome
 from missions.sitl.settings import SitlSettings
+from missions.task.directory import TaskDirectory
 
 logger = logging.getLogger(__name__)
 
@@ -102,59 +101,24 @@ class FlightPlanFiles:
 
     @classmethod
     def read(cls, task_dir: Path) -> FlightPlanFiles:
-        missions, parameters = [], []
-        for k in (1, 2, 3):
-            text = (task_dir / f"drone{k}.mission.json").read_text(encoding="utf-8")
-            missions.append(mission_from_json(json.loads(text)))
-            parm = task_dir / f"drone{k}.parm"
-            parameters.append(read_parameter_file(parm) if parm.exists() else {})
-        items = missions[0].items
-        holds = [i.seq for i in items if i.command == MavCmd.NAV_LOITER_UNLIM]
-        if len(holds) < 2:
-            raise SitlError(
-                f"{task_dir}: the missions have no NAV_LOITER_UNLIM hold at the start to "
-                "release the drones from (export them again with this version)"
-            )
-        tracks = json.loads((task_dir / "tracks.json").read_text(encoding="utf-8"))
+        """From a task's directory (:class:`~missions.task.directory.TaskDirectory`).
+
+        Raises
+        ------
+        TaskDirectoryError
+            A file the flight needs is missing or unreadable.
+        """
+        directory = TaskDirectory(task_dir)
+        missions = directory.missions()
+        mission = directory.mission_summary()
         return cls(
             missions=tuple(missions),
-            parameters=tuple(parameters),
-            hold_seq=holds[0],
-            release_seq=holds[0] + 1,
+            parameters=tuple(directory.parameters()),
+            hold_seq=mission.release.hold_seq,
+            release_seq=mission.release.release_seq,
             end_seq=tuple(m.items[-1].seq for m in missions),
-            duration_s=float(tracks["time"][-1]),
+            duration_s=mission.duration,
         )
-
-
-@dataclass(frozen=True)
-class VehicleFlight:
-    """One vehicle's part of a recorded flight."""
-
-    name: str
-    system_id: int
-    tlog: str  #: file name in the flight directory
-    rate: float  #: achieved simulated seconds per wall second
-    release_sent_s: float  #: when its release was sent [s on the logs' time base]
-    release_confirmed_s: float  #: when MISSION_CURRENT confirmed it [s, same base]
-
-
-@dataclass(frozen=True)
-class SitlFlight:
-    """What ``flight.json`` holds: the facts of the flight that the logs do not."""
-
-    task_dir: str
-    speedup: float
-    hold_seq: int
-    release_seq: int
-    end_seq: tuple[int, ...]
-    planned_duration_s: float
-    vehicles: tuple[VehicleFlight, ...]
-    parameters: dict[str, dict[str, float]]  #: what was set, per vehicle
-    release_delays: tuple[float, ...]
-    parameter_differences: tuple[str, ...]  #: read back unlike the plan's .parm
-
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 def _policy(settings: SitlSettings) -> RetryPolicy:
@@ -322,7 +286,7 @@ def fly_on_sitl(
     out_dir: Path,
     settings: SitlSettings | None = None,
     options: SitlFlightOptions | None = None,
-) -> SitlFlight:
+) -> FlightRecord:
     """Fly the task in ``task_dir`` on three SITL instances; logs into ``out_dir``.
 
     Must run where SITL's ports are private (:mod:`missions.sitl.netns`).
@@ -364,7 +328,7 @@ def _fly(
     clock: StretchedClock,
     task_dir: Path,
     writers: Sequence[TlogWriter],
-) -> SitlFlight:
+) -> FlightRecord:
     links = fleet.links
     sim = settings.speedup
 
@@ -430,7 +394,7 @@ def _fly(
             + ", ".join(f"{n} x{r:.2f}" for n, r in slow.items())
         )
     vehicles = tuple(
-        VehicleFlight(
+        VehicleRecord(
             name=link.name,
             system_id=link.info.system_id,
             tlog=writers[k].path.name,
@@ -440,7 +404,7 @@ def _fly(
         )
         for k, link in enumerate(links)
     )
-    return SitlFlight(
+    return FlightRecord(
         task_dir=str(task_dir),
         speedup=sim,
         hold_seq=plan.hold_seq,

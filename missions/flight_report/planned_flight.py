@@ -1,11 +1,10 @@
 """What the drones were told to do, on mission time (zero at the release), read from a
-task's directory as ``flycrane plan`` wrote it: the autopilots' modelled motion
-(:class:`~missions.trajectory.motion.DroneMotion`) and the dense plan of configurations on the same
-time."""
+task's directory (:class:`~missions.task.directory.TaskDirectory`): the autopilots'
+modelled motion (:class:`~missions.trajectory.motion.DroneMotion`) and the dense plan of
+configurations on the same time."""
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,23 +13,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.model.kinematics import drone_positions_from_configuration
+from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import ValidityChecker
-from missions.task.spec import ResolvedTask, TaskSpec, resolve_task
+from flycrane.world.scene import SceneSpec
+from missions.task.directory import Release, TaskDirectory
+from missions.task.spec import TaskSpec
 from missions.trajectory.motion import DroneMotion
 from missions.trajectory.tracks import Track
 from missions.trajectory.waypoints import planned_configurations
 
 #: Plan time between the samples progress is matched against [s].
 PROGRESS_STEP_S = 0.02
-
-
-def _end_seqs(task_dir: Path) -> tuple[int, int, int]:
-    """Each drone's last mission item (``drone{k}.mission.json``)."""
-    seqs = []
-    for k in (1, 2, 3):
-        mission = json.loads((task_dir / f"drone{k}.mission.json").read_text(encoding="utf-8"))
-        seqs.append(int(mission["items"][-1]["seq"]))
-    return (seqs[0], seqs[1], seqs[2])
 
 
 @dataclass(frozen=True)
@@ -48,7 +41,9 @@ class ContactWindow:
 class PlannedFlight:
     """The timed waypoints, the dense planned track and the modelled vehicles' motion."""
 
-    resolved: ResolvedTask
+    task: TaskSpec  #: as planned, written out whole
+    problem: PlanningProblem  #: of the task's system and scene, as planned
+    real: ValidityChecker  #: the problem's validity on the real obstacles (no clearance)
     waypoint_time: NDArray[np.float64]  #: (K,) [s]
     waypoint_drones: NDArray[np.float64]  #: (K, 3, 3) ENU [m]
     track: Track  #: the dense plan: configurations and drone positions on mission time
@@ -57,6 +52,7 @@ class PlannedFlight:
     #: its target as the model predicts (vertical legs lag less) is not out of step
     motion: DroneMotion
     timing_tolerance: dict[str, float | str]
+    release: Release
     end_seq: tuple[int, int, int]  #: each drone's last item: the hold after the last leg
     contact_windows: tuple[ContactWindow, ...] = ()
 
@@ -68,7 +64,7 @@ class PlannedFlight:
     def real_validity(self, surfaces: tuple[str, ...] = ()) -> ValidityChecker:
         """The task's validity on the real obstacles (no planning clearance), without the
         named ``surfaces``."""
-        return self.resolved.problem.validity.with_clearance(0.0).without(surfaces)
+        return self.real.without(surfaces)
 
     def drones_at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """Modelled drone positions at mission times ``t`` (len(t), 3, 3)."""
@@ -85,26 +81,37 @@ class PlannedFlight:
 
     @classmethod
     def read(cls, task_dir: Path) -> PlannedFlight:
-        """From ``task.json`` and ``tracks.json`` of a task's directory."""
-        task = TaskSpec.model_validate_json((task_dir / "task.json").read_text(encoding="utf-8"))
-        resolved = resolve_task(task)
-        tracks = json.loads((task_dir / "tracks.json").read_text(encoding="utf-8"))
-        q = np.array(tracks["dense"]["configurations"])
-        system = resolved.problem.system
-        track = Track(
-            np.array(tracks["dense"]["time"]), q, drone_positions_from_configuration(system, q)
+        """From a task's directory.
+
+        Raises
+        ------
+        TaskDirectoryError
+            A file the report needs is missing or unreadable.
+        """
+        directory = TaskDirectory(task_dir)
+        task = directory.task()
+        assert isinstance(task.scene, SceneSpec)  # written out whole (task.json)
+        problem = PlanningProblem.from_scene(
+            task.scene, None if isinstance(task.system, str) else task.system
         )
+        tracks = directory.tracks()
+        q = tracks.dense_configurations
+        track = Track(tracks.dense_time, q, drone_positions_from_configuration(problem.system, q))
+        end = [m.items[-1].seq for m in directory.missions()]
         return cls(
-            resolved=resolved,
-            waypoint_time=np.array(tracks["time"]),
-            waypoint_drones=np.array(tracks["drones_enu"]),
+            task=task,
+            problem=problem,
+            real=problem.validity.with_clearance(0.0),
+            waypoint_time=tracks.time,
+            waypoint_drones=tracks.drones_enu,
             track=track,
-            motion=DroneMotion.from_dict(tracks.get("vehicle_motion", tracks["motion"])),
-            timing_tolerance=tracks["timing_tolerance"],
-            end_seq=_end_seqs(task_dir),
+            motion=tracks.vehicle_motion,
+            timing_tolerance=tracks.timing_tolerance.as_dict(),
+            release=directory.mission_summary().release,
+            end_seq=(end[0], end[1], end[2]),
             contact_windows=tuple(
-                ContactWindow(leg["start_time"], math.inf, tuple(leg["surfaces"]))
-                for leg in [tracks.get("set_down")]
+                ContactWindow(leg.start, math.inf, leg.leg.surfaces)
+                for leg in [tracks.set_down]
                 if leg is not None
             ),
         )

@@ -1,5 +1,5 @@
 """A flight as an MCAP log for Foxglove: the load as the drones carried it, and the report's
-figures over time (``missions.export.mcap_log`` writes it).
+figures over time (``missions.export.mission_mcap`` writes it).
 
 Topics (log time: the first release, on the flight log's clock, plus mission time):
 
@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from missions.export.mcap_log import LogInputs, write_mcap
-from missions.flight_report.plan import PlannedFlight
+from missions.export.mission_mcap import LogInputs, write_mcap
+from missions.flight_report.planned_flight import PlannedFlight
 from missions.flight_report.report import FlightReport
 from missions.trajectory.tracks import Track
 
@@ -65,8 +65,8 @@ def write_flight_mcap(report: FlightReport, plan: PlannedFlight, path: Path) -> 
         body = {"time": float(when), "plan_time": _plain(series["progress"]["plan_time"][n])}
         records.append((float(when), "/flight/progress", body))
     summary = {key: value for key, value in report.as_dict().items() if key != "series"}
-    task = plan.resolved.task
-    problem = plan.resolved.problem
+    task = plan.task
+    problem = plan.problem
     return write_mcap(
         path,
         LogInputs(

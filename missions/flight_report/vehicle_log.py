@@ -1,6 +1,6 @@
 """A recorded flight read back from telemetry logs: one ``.tlog`` per drone.
 
-Any tlog works: ours (SITL flights, :mod:`missions.sitl.flight`) or a ground station's from
+Any tlog works: ours (SITL flights, :mod:`missions.sitl.harness`) or a ground station's from
 a real flight. Per drone this reads
 
 - the autopilot's estimate: GLOBAL_POSITION_INT (position, altitude AMSL, velocity), timed
@@ -38,7 +38,7 @@ TIMED = frozenset({"GLOBAL_POSITION_INT", "SYSTEM_TIME", "ATTITUDE", "LOCAL_POSI
 
 
 @dataclass(frozen=True)
-class Track:
+class PositionSeries:
     """Positions in the task's ENU frame on the vehicle's clock."""
 
     time: NDArray[np.float64]  #: (N,) vehicle time [s]
@@ -70,8 +70,8 @@ class VehicleLog:
 
     name: str
     system_id: int
-    estimated: Track
-    true: Track | None  #: None without SIM_STATE (a real vehicle)
+    estimated: PositionSeries
+    true: PositionSeries | None  #: None without SIM_STATE (a real vehicle)
     current: SeqEvents  #: MISSION_CURRENT changes
     reached: SeqEvents  #: MISSION_ITEM_REACHED
 
@@ -86,12 +86,12 @@ def _events(rows: Sequence[Sequence[float]]) -> SeqEvents:
     return SeqEvents(array[:, 0], array[:, 1], array[:, 2].astype(np.int64))
 
 
-def _track(rows: Sequence[Sequence[float]], origin: GeodeticOrigin) -> Track:
+def _track(rows: Sequence[Sequence[float]], origin: GeodeticOrigin) -> PositionSeries:
     array = _timed(rows, 5)
     enu = enu_from_geodetic(
         array[:, 2] * DEGREE_UNIT, array[:, 3] * DEGREE_UNIT, array[:, 4], origin
     )
-    return Track(array[:, 0], enu, array[:, 1])
+    return PositionSeries(array[:, 0], enu, array[:, 1])
 
 
 def read_vehicle_log(path: Path, name: str, origin: GeodeticOrigin) -> VehicleLog:

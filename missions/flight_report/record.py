@@ -1,0 +1,77 @@
+"""A recorded flight's own facts (``flight.json``): what the ground station did and when,
+beside the vehicles' tlogs. The SITL harness writes it (:mod:`missions.sitl.flight`); the
+flight report reads it."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from flycrane.errors import FieldProblem, InputError
+
+FLIGHT_FILE = "flight.json"
+
+
+@dataclass(frozen=True)
+class VehicleRecord:
+    """One vehicle's part of a recorded flight."""
+
+    name: str
+    system_id: int
+    tlog: str  #: file name in the flight directory
+    rate: float  #: achieved simulated seconds per wall second
+    release_sent_s: float  #: when its release was sent [s on the logs' time base]
+    release_confirmed_s: float  #: when MISSION_CURRENT confirmed it [s, same base]
+
+
+@dataclass(frozen=True)
+class FlightRecord:
+    """What ``flight.json`` holds: the facts of the flight that the logs do not."""
+
+    task_dir: str
+    speedup: float
+    hold_seq: int
+    release_seq: int
+    end_seq: tuple[int, ...]
+    planned_duration_s: float
+    vehicles: tuple[VehicleRecord, ...]
+    parameters: dict[str, dict[str, float]]  #: what was set, per vehicle
+    release_delays: tuple[float, ...]
+    parameter_differences: tuple[str, ...]  #: read back unlike the plan's .parm
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def write(self, flight_dir: Path) -> Path:
+        path = flight_dir / FLIGHT_FILE
+        path.write_text(json.dumps(self.as_dict(), indent=2) + "\n", encoding="utf-8")
+        return path
+
+    @classmethod
+    def read(cls, flight_dir: Path) -> FlightRecord:
+        """From ``flight_dir/flight.json``.
+
+        Raises
+        ------
+        InputError
+            No such file, or not a flight record of this version (field ``flight``).
+        """
+        path = flight_dir / FLIGHT_FILE
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+            return cls(
+                task_dir=str(data["task_dir"]),
+                speedup=float(data["speedup"]),
+                hold_seq=int(data["hold_seq"]),
+                release_seq=int(data["release_seq"]),
+                end_seq=tuple(int(s) for s in data["end_seq"]),
+                planned_duration_s=float(data["planned_duration_s"]),
+                vehicles=tuple(VehicleRecord(**v) for v in data["vehicles"]),
+                parameters=dict(data["parameters"]),
+                release_delays=tuple(float(d) for d in data["release_delays"]),
+                parameter_differences=tuple(data["parameter_differences"]),
+            )
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise InputError([FieldProblem("flight", f"{path}: {error}")]) from None

@@ -1,0 +1,154 @@
+"""A task made concrete: its problem, the planner that runs, the checkers of each clearance,
+and the checked start and goal.
+
+:func:`resolve_task` raises errors that name the field (preset names, system or scene
+fields) or the violated constraint and colliding bodies (start and goal). Everything a
+task's run needs more than once is resolved here once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import ValidationError
+
+from flycrane.errors import FieldProblem, InputError
+from flycrane.model.system_spec import SystemSpec, problems_from_validation_error, system_preset
+from flycrane.planning.algorithms.bitrrt import MESH_REASON, MeshScene
+from flycrane.planning.planners import Algorithm
+from flycrane.planning.poses import configuration_from_pose
+from flycrane.planning.problem import PlanningProblem
+from flycrane.planning.validity import ValidityChecker
+from flycrane.world.scene import SceneSpec, load_scene
+from missions.position_error import position_error_model
+from missions.task.spec import PlatformPose, TaskSpec
+from missions.trajectory.vertical_legs import VerticalLeg, clear_end
+
+
+@dataclass(frozen=True)
+class Checkers:
+    """The task's validity at each clearance it is judged by (docs/missions.md
+    "Clearance"): the plan keeps the whole obstacle clearance, the mission's legs may use
+    half of it (the other half is the flight's), and a flight is judged on the real
+    obstacles."""
+
+    planning: ValidityChecker
+    legs: ValidityChecker
+    real: ValidityChecker
+
+    @classmethod
+    def of(cls, planning: ValidityChecker) -> Checkers:
+        clearance = planning.scene.collision.obstacle_clearance
+        return cls(planning, planning.with_clearance(clearance / 2), planning.with_clearance(0.0))
+
+
+@dataclass(frozen=True)
+class ResolvedTask:
+    """A task made concrete: the problem and the checked configurations to plan between.
+
+    Where the given start or goal lies within the obstacle clearance of a surface, the plan
+    starts or ends at the pose above it, and ``lift_off`` / ``set_down`` is the vertical leg
+    the mission flies between the two (:mod:`missions.trajectory.vertical_legs`)."""
+
+    task: TaskSpec
+    problem: PlanningProblem
+    algorithm: Algorithm  #: the planner that runs in this scene
+    checkers: Checkers
+    start: NDArray[np.float64]
+    goal: NDArray[np.float64]
+    lift_off: VerticalLeg | None = None
+    set_down: VerticalLeg | None = None
+
+    def self_contained(self) -> TaskSpec:
+        """The task with its system, scene, start, goal and planner written out, so that
+        the task's directory alone says what was planned."""
+        task, problem = self.task, self.problem
+        return task.model_copy(
+            update={
+                "planner": task.planner.model_copy(update={"algorithm": self.algorithm}),
+                "system": problem.system.spec,
+                "scene": problem.scene,
+                "start": tuple(float(v) for v in self.start),
+                "goal": tuple(float(v) for v in self.goal),
+            }
+        )
+
+
+def task_specs(
+    task: TaskSpec, base_dir: Path | None = None
+) -> tuple[SystemSpec, SceneSpec, Path | None]:
+    """The task's system and scene with presets loaded, and the directory its scene's mesh
+    files are relative to.
+
+    Raises
+    ------
+    InputError
+        Unknown system or scene preset (field ``system`` or ``scene``).
+    """
+    system = system_preset(task.system) if isinstance(task.system, str) else task.system
+    if not isinstance(task.scene, str):
+        return system, task.scene, base_dir
+    try:
+        scene, scene_dir = load_scene(task.scene)
+    except InputError as error:
+        raise InputError([FieldProblem("scene", p.reason) for p in error.problems]) from None
+    return system, scene, scene_dir
+
+
+def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
+    """Build the problem and check start and goal (every error names its field).
+
+    Raises
+    ------
+    InputError
+        Unknown preset, or a start/goal of the wrong shape.
+    InvalidConfigurationError
+        Start or goal infeasible, out of bounds or in collision (``what`` says which).
+    """
+    system, scene, scene_dir = task_specs(task, base_dir)
+    # The plan keeps the clearance the position-error model asks for (or the scene's, if
+    # larger): docs/missions.md "Clearance".
+    clearance = max(
+        scene.collision.obstacle_clearance,
+        position_error_model(task.mission.position_error).obstacle_clearance,
+    )
+    if clearance != scene.collision.obstacle_clearance:
+        try:
+            scene = scene.model_copy(
+                update={
+                    "collision": scene.collision.model_copy(
+                        update={"obstacle_clearance": clearance}
+                    )
+                }
+            )
+            scene = SceneSpec.model_validate(scene.model_dump())
+        except ValidationError as error:
+            raise InputError(
+                [FieldProblem("mission.position_error", p.reason)
+                 for p in problems_from_validation_error(error)]
+            ) from None  # fmt: skip
+    problem = PlanningProblem.from_scene(scene, system, scene_dir)
+    try:
+        algorithm = task.planner.algorithm_for(problem.validity.has_meshes)
+    except MeshScene:
+        raise InputError([FieldProblem("planner.algorithm", MESH_REASON)]) from None
+    checkers = Checkers.of(problem.validity)
+    ends, legs = [], []
+    ends_given = (("start", task.start, scene.start), ("goal", task.goal, scene.goal))
+    for what, given, default in ends_given:
+        if isinstance(given, PlatformPose):
+            q = configuration_from_pose(
+                problem.space, checkers.real, given.position, given.orientation, what
+            )
+        else:
+            q = np.array(default if given is None else given, dtype=float)
+        approach = task.mission.set_down_approach if what == "goal" else 0.0
+        planned, leg = clear_end(q, checkers.planning, checkers.real, what, approach)
+        ends.append(planned)
+        legs.append(leg)
+    return ResolvedTask(
+        task, problem, algorithm, checkers, ends[0], ends[1], lift_off=legs[0], set_down=legs[1]
+    )
