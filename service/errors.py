@@ -17,7 +17,7 @@ from sqlalchemy.exc import OperationalError
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 
 from flycrane.errors import FlyCraneError, InputError, readable_errors
-from flycrane.planning.validity import InvalidConfigurationError
+from flycrane.planning.validity import InvalidConfigurationError, InvalidReason
 
 
 class ServiceError(FlyCraneError):
@@ -72,6 +72,10 @@ class DataDirLockedError(ServiceError):
     status_code = 503
 
 
+#: Problems a 422 lists; the others are counted (a request of many small mistakes must not
+#: make the server answer many times its size: issue 22, item 6).
+MAX_LISTED_PROBLEMS = 20
+
 #: Retry-After for a busy or unreachable database [s].
 DATABASE_RETRY_AFTER = 5
 
@@ -106,13 +110,41 @@ def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
     return responses
 
 
+def listed(details: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The first :data:`MAX_LISTED_PROBLEMS` entries of a 422's ``detail``, and one more
+    counting the others (FastAPI's entry shape, type ``too_many_problems``)."""
+    if len(details) <= MAX_LISTED_PROBLEMS:
+        return details
+    more = len(details) - MAX_LISTED_PROBLEMS
+    summary = {
+        "loc": ["body"],
+        "msg": f"and {more} more ({len(details)} in all); the first {MAX_LISTED_PROBLEMS} "
+        "are listed",
+        "type": "too_many_problems",
+    }
+    return [*details[:MAX_LISTED_PROBLEMS], summary]
+
+
+def listed_reasons(reason: InvalidReason) -> str:
+    """Why a configuration is invalid, as :class:`InvalidReason` says it, the first
+    :data:`MAX_LISTED_PROBLEMS` reasons listed and the others counted."""
+    parts = [f"outside the bounds: {b}" for b in reason.out_of_bounds]
+    parts += [str(v) for v in reason.violations] + [str(c) for c in reason.contacts]
+    if len(parts) <= MAX_LISTED_PROBLEMS:
+        return str(reason)
+    more = len(parts) - MAX_LISTED_PROBLEMS
+    return "; ".join(parts[:MAX_LISTED_PROBLEMS]) + f"; and {more} more ({len(parts)} in all)"
+
+
 def input_error_body(error: InputError) -> dict:
     """FastAPI's 422 body for field problems found after schema validation."""
     return {
-        "detail": [
-            {"loc": ["body", *p.field.split(".")], "msg": p.reason, "type": "value_error"}
-            for p in error.problems
-        ]
+        "detail": listed(
+            [
+                {"loc": ["body", *p.field.split(".")], "msg": p.reason, "type": "value_error"}
+                for p in error.problems
+            ]
+        )
     }
 
 
@@ -127,7 +159,7 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _schema_error(_request: Request, error: RequestValidationError) -> JSONResponse:
-        body = {"detail": readable_errors(jsonable_encoder(error.errors()))}
+        body = {"detail": listed(readable_errors(jsonable_encoder(error.errors())))}
         return JSONResponse(body, status_code=422)
 
     @app.exception_handler(InputError)
@@ -138,7 +170,8 @@ def install_error_handlers(app: FastAPI) -> None:
     async def _invalid_configuration(
         _request: Request, error: InvalidConfigurationError
     ) -> JSONResponse:
-        detail = {"loc": ["body", error.what], "msg": str(error.reason), "type": "value_error"}
+        message = listed_reasons(error.reason)
+        detail = {"loc": ["body", error.what], "msg": message, "type": "value_error"}
         return JSONResponse({"detail": [detail]}, status_code=422)
 
     @app.exception_handler(OperationalError)
