@@ -110,5 +110,5 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
     )
     app.add_middleware(BodySizeLimit, limit=settings.max_request_bytes)
     # Outermost: a request for another host name is refused before anything else runs.
-    app.add_middleware(TrustedHostMiddleware, allowed_hosts=list(settings.allowed_hosts))
+    app.add_middleware(TrustedHostMiddleware, allowed_hosts=settings.host_patterns)
     return app

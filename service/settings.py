@@ -12,7 +12,7 @@ unless widened here, and finished tasks are deleted after ``retention_days``.
 from __future__ import annotations
 
 from functools import lru_cache
-from ipaddress import IPv4Network, IPv6Network
+from ipaddress import AddressValueError, IPv4Network, IPv6Address, IPv6Network
 from pathlib import Path
 
 from pydantic import AnyHttpUrl, Field, SecretStr, field_validator, model_validator
@@ -140,12 +140,25 @@ class Settings(BaseSettings):
         return self.database_url or f"sqlite:///{self.data_dir / 'flycrane.db'}"
 
     @property
+    def host_patterns(self) -> list[str]:
+        """``allowed_hosts`` as a Host header writes them: an IPv6 address in brackets
+        (``::1`` -> ``[::1]``, what Starlette's TrustedHostMiddleware compares)."""
+        return [_as_in_host_header(host) for host in self.allowed_hosts]
+
+    @property
     def tasks_dir(self) -> Path:
         return self.data_dir / "tasks"
 
     @property
     def reads_need_token(self) -> bool:
         return self.api_token is not None and not self.public_reads
+
+
+def _as_in_host_header(host: str) -> str:
+    try:
+        return f"[{IPv6Address(host.removeprefix('[').removesuffix(']')).compressed}]"
+    except AddressValueError:
+        return host
 
 
 @lru_cache
