@@ -20,13 +20,13 @@ from fastapi.concurrency import run_in_threadpool
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 
 from flycrane.execution import executor_for
-from service.api.routes import health, presets, statics, tasks, view
+from service.api.routes import docs, health, presets, statics, tasks, view
 from service.deps import READ, ServiceState
 from service.errors import error_responses, install_error_handlers
 from service.jobs import JobManager
 from service.lifecycle import RETENTION_INTERVAL, DataDirLock, purge_expired
 from service.metrics import ServiceMetrics
-from service.middleware import BodySizeLimit
+from service.middleware import BodySizeLimit, SecurityHeaders
 from service.migrate import upgrade_database
 from service.settings import Settings, get_settings
 from service.storage import TaskStore, make_engine
@@ -99,6 +99,10 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         "plots.",
         lifespan=lifespan,
         responses=error_responses(400),
+        # Our own /docs (vendored Swagger UI, no CDN); no /redoc, which loads from one.
+        openapi_url="/openapi.json" if settings.api_docs else None,
+        docs_url=None,
+        redoc_url=None,
     )
     install_error_handlers(app)
     for module in (tasks, statics, presets, health):
@@ -108,7 +112,14 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         dependencies=READ,
         responses=error_responses(401, 404, 409, 503),
     )
+    # What carries no task data is open, as the API's description is: the viewer's files
+    # and the docs.
+    app.include_router(view.static_router)
+    if settings.api_docs:
+        app.include_router(docs.router)
     app.add_middleware(BodySizeLimit, limit=settings.max_request_bytes)
-    # Outermost: a request for another host name is refused before anything else runs.
+    # A request for another host name is refused before anything else runs ...
     app.add_middleware(TrustedHostMiddleware, allowed_hosts=settings.host_patterns)
+    # ... and every answer, that refusal included, carries the security headers.
+    app.add_middleware(SecurityHeaders)
     return app

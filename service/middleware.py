@@ -1,8 +1,37 @@
-"""ASGI middleware of the service: the request-body limit (413) enforced on the bytes."""
+"""ASGI middleware of the service: the request-body limit (413) enforced on the bytes, and
+the security headers of every response (:mod:`service.security`)."""
 
 from __future__ import annotations
 
+from starlette.datastructures import MutableHeaders
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
+
+from service.security import CSP, HEADERS, NOTHING
+
+
+class SecurityHeaders:
+    """Add :data:`service.security.HEADERS` to every response, and the policy
+    :data:`~service.security.NOTHING` to those whose route set none (installed outermost,
+    so that the refusals of the other middleware get them too)."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+
+        async def hardened(message: Message) -> None:
+            if message["type"] == "http.response.start":
+                headers = MutableHeaders(scope=message)
+                for name, value in HEADERS.items():
+                    headers[name] = value
+                if CSP not in headers:
+                    headers[CSP] = NOTHING
+            await send(message)
+
+        await self.app(scope, receive, hardened)
 
 
 class BodySizeLimit:

@@ -98,6 +98,11 @@ class Settings(BaseSettings):
         description="regular expressions a vehicle's serial device path must match whole",
     )
     upload_timeout: float = Field(60.0, gt=0, description="overall upload deadline [s]")
+    api_docs: bool = Field(
+        True,
+        description="serve the API's description, /openapi.json, and its documentation page, "
+        "/docs (Swagger UI from this server); false: neither",
+    )
 
     @field_validator("api_token", "read_token")
     @classmethod

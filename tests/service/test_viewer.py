@@ -13,6 +13,7 @@ import io
 import json
 import os
 import shutil
+import time
 import zipfile
 from pathlib import Path
 
@@ -87,6 +88,16 @@ def test_static_files_only_the_viewers(service):
         assert client.get(f"/v1/viewer/static/{name}").status_code == 404, name
 
 
+def wait_until(page, expression: str, timeout_s: float) -> None:
+    """Poll ``expression`` in the page until it is true. Through ``evaluate``, which the
+    pages' Content-Security-Policy allows: ``wait_for_function``'s predicate runs through
+    eval in the page, which the policy forbids."""
+    deadline = time.monotonic() + timeout_s
+    while not page.evaluate(expression):
+        assert time.monotonic() < deadline, f"{expression} not true within {timeout_s} s"
+        time.sleep(0.05)
+
+
 class Viewer:
     """A page of the viewer, with every console error and uncaught exception it raised."""
 
@@ -98,9 +109,7 @@ class Viewer:
         self.page.on("pageerror", lambda e: self.problems.append(f"page error: {e}"))
         self.page.on("request", lambda r: self.requests.append(r.url))
         self.page.goto(url)
-        self.page.wait_for_function(
-            "window.flycraneViewer && window.flycraneViewer.ready", timeout=60_000
-        )
+        wait_until(self.page, "window.flycraneViewer && window.flycraneViewer.ready", 60.0)
 
     def _console(self, message) -> None:
         if message.type == "error":
@@ -220,7 +229,7 @@ def test_play_runs_the_clock_and_pause_stops_it(service, rescue, browser):
     viewer = Viewer(browser, f"{client.base_url}v1/tasks/{task['id']}/view")
     try:
         viewer.page.locator("#play").click()
-        viewer.page.wait_for_function("flycraneViewer.time > 1.0", timeout=30_000)
+        wait_until(viewer.page, "flycraneViewer.time > 1.0", 30.0)
         viewer.page.locator("#play").click()
         assert viewer.page.evaluate("flycraneViewer.playing") is False
         stopped = viewer.page.evaluate("flycraneViewer.time")
@@ -276,9 +285,7 @@ def test_task_list_links_to_the_view(service, rescue, browser):
         viewer_page.goto(f"{client.base_url}v1/viewer")
         row = viewer_page.locator("tr", has_text="rescue viewer")
         row.get_by_role("link", name="view").click()
-        viewer_page.wait_for_function(
-            "window.flycraneViewer && flycraneViewer.ready", timeout=60_000
-        )
+        wait_until(viewer_page, "window.flycraneViewer && flycraneViewer.ready", 60.0)
         assert viewer_page.url.endswith(f"/v1/tasks/{task['id']}/view")
     finally:
         viewer_page.close()

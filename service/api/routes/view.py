@@ -3,7 +3,11 @@
 - ``GET /v1/tasks/{id}/view``: the viewer page of a done task (HTML);
 - ``GET /v1/tasks/{id}/view.json``: the document that page draws (docs/viewer.md);
 - ``GET /v1/viewer``: the tasks, newest first, linking to their views and bundles;
-- ``GET /v1/viewer/static/{path}``: the page's script, styles and vendored libraries.
+- ``GET /v1/viewer/static/{path}``: the page's script, styles and vendored libraries, open
+  to all (no task data in them), as the API docs are.
+
+Each page carries a Content-Security-Policy that runs only this server's scripts and its
+own import map (:func:`service.security.page_policy`).
 
 Pages link to each other and to the static files by relative URLs, so they work behind a
 proxy that mounts the service under a path prefix.
@@ -20,10 +24,13 @@ from missions.viewer import served_page, static_file
 from missions.viewer.page import ListedTask, task_list_page
 from service.artifacts import view_of
 from service.deps import ServiceState, StateDep
-from service.errors import ArtifactNotFoundError, TaskNotFoundError
+from service.errors import ArtifactNotFoundError, TaskNotFoundError, error_responses
+from service.security import CSP, page_policy
 from service.storage import MAX_OFFSET, TaskRecord, TaskStatus
 
 router = APIRouter(tags=["viewer"])
+#: The page's files carry no task data: open to all, as the API docs are (``create_app``).
+static_router = APIRouter(tags=["viewer"], responses=error_responses(404))
 
 #: The page's files as seen from /v1/tasks/{id}/view and from /v1/viewer.
 _STATIC_FROM_TASK, _STATIC_FROM_LIST = "../../viewer/static/", "viewer/static/"
@@ -40,7 +47,7 @@ def _document(state: ServiceState, task_id: str) -> dict:
 def view_task(task_id: str, state: StateDep) -> HTMLResponse:
     """The viewer page of a done task: scene, planned (and flown) motion, profiles."""
     page = served_page(_document(state, task_id), _STATIC_FROM_TASK, "../../viewer")
-    return HTMLResponse(page)
+    return HTMLResponse(page, headers={CSP: page_policy(page)})
 
 
 @router.get("/v1/tasks/{task_id}/view.json")
@@ -82,10 +89,11 @@ def task_list(
         links.append(f'<a href="?offset={offset + limit}&amp;limit={limit}">older</a>')
     shown = f"{offset + 1}-{offset + len(records)} of {total}" if records else f"0 of {total}"
     pages = " ".join([html.escape(shown), *links])
-    return HTMLResponse(task_list_page([_listed(r) for r in records], _STATIC_FROM_LIST, pages))
+    page = task_list_page([_listed(r) for r in records], _STATIC_FROM_LIST, pages)
+    return HTMLResponse(page, headers={CSP: page_policy(page)})
 
 
-@router.get("/v1/viewer/static/{name:path}")
+@static_router.get("/v1/viewer/static/{name:path}")
 def viewer_static(name: str) -> FileResponse:
     """A file of the viewer page (its script, styles, vendored libraries and licenses)."""
     path = static_file(name)
