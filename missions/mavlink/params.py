@@ -48,13 +48,20 @@ def same_value(expected: float, found: float) -> bool:
 
 
 def _exchange(
-    link: VehicleLink, name: str, spec_of: Callable[[], MessageSpec], policy: RetryPolicy
+    link: VehicleLink,
+    name: str,
+    spec_of: Callable[[], MessageSpec],
+    policy: RetryPolicy,
+    ends: float = math.inf,
 ) -> float | None:
-    """Send ``spec_of()`` until a PARAM_VALUE for ``name`` answers; its value, or None."""
+    """Send ``spec_of()`` until a PARAM_VALUE for ``name`` answers; its value, or None (no
+    answer, or none before ``ends``, a ``time.monotonic()`` value)."""
     with link.subscribe(("PARAM_VALUE",)) as inbox:
         for _ in range(policy.retries + 1):
+            if time.monotonic() >= ends:
+                break
             link.send(spec_of())
-            until = time.monotonic() + policy.request_timeout_s
+            until = min(time.monotonic() + policy.request_timeout_s, ends)
             while (left := until - time.monotonic()) > 0:
                 msg = inbox.get(left)
                 if msg is not None and _name_of(msg) == name:
@@ -76,9 +83,19 @@ def read_parameter(link: VehicleLink, name: str, policy: RetryPolicy) -> float |
 def check_parameters(
     link: VehicleLink, expected: Mapping[str, float], policy: RetryPolicy
 ) -> tuple[ParameterCheck, ...]:
-    """Read every parameter of ``expected`` and compare (nothing is changed)."""
+    """Read every parameter of ``expected`` and compare (nothing is changed).
+
+    The whole read ends by ``policy.deadline_s``, as a transfer does: a parameter the vehicle
+    has not answered for by then is reported as not answered (``found`` None).
+    """
+    ends = time.monotonic() + policy.deadline_s
     return tuple(
-        ParameterCheck(link.name, name, value, read_parameter(link, name, policy))
+        ParameterCheck(
+            link.name,
+            name,
+            value,
+            _exchange(link, name, partial(param_request_read, name, link.target), policy, ends),
+        )
         for name, value in expected.items()
     )
 

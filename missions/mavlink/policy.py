@@ -27,9 +27,14 @@ heartbeat periods). Tests pass a faster policy; nothing here is a module global.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 
 from flycrane.errors import FieldProblem, InputError
+
+#: The shortest deadline :meth:`RetryPolicy.until` gives (a positive one: at an overall
+#: deadline a stage still sends its first request once, then times out) [s].
+MIN_DEADLINE_S = 1e-3
 
 
 @dataclass(frozen=True)
@@ -68,3 +73,12 @@ class RetryPolicy:
     def step_timeout_s(self) -> float:
         """Longest silence one request is waited for, resends included [s]."""
         return self.request_timeout_s * (self.retries + 1)
+
+    def until(self, ends: float | None) -> RetryPolicy:
+        """This policy with ``deadline_s`` cut to the time left before ``ends`` (a
+        ``time.monotonic()`` value; None: unchanged), so that stages run one after another
+        (connect, upload, read-back, parameters) all end by one overall deadline."""
+        if ends is None:
+            return self
+        left = max(ends - time.monotonic(), MIN_DEADLINE_S)
+        return replace(self, deadline_s=min(self.deadline_s, left))

@@ -110,13 +110,14 @@ def verify_mission(
             )
 
 
-def _discard(link: VehicleLink, policy: RetryPolicy) -> None:
-    """Clear a mission that must not stay on the vehicle; log, never raise."""
+def _discard(link: VehicleLink, policy: RetryPolicy, ends: float | None = None) -> None:
+    """Clear a mission that must not stay on the vehicle (by ``ends``, if given); log, never
+    raise."""
     quick = RetryPolicy(
         request_timeout_s=policy.request_timeout_s,
         retries=1,
         deadline_s=policy.request_timeout_s * 2,
-    )
+    ).until(ends)
     try:
         clear_mission(link, quick)
         logger.warning("%s: mission cleared after the failed upload", link.name)
@@ -130,9 +131,14 @@ def upload_and_verify(
     policy: RetryPolicy,
     verification: Verification = Verification.ARDUPILOT,
     parameters: Mapping[str, float] | None = None,
+    ends: float | None = None,
 ) -> UploadReport:
     """Upload ``mission`` on ``link`` (heartbeat already received) and verify it; then read
     ``parameters`` (the mission's ``.parm``) back from the vehicle and compare.
+
+    With ``ends`` (a ``time.monotonic()`` value), every stage, the clearing of a failed
+    upload included, ends by then (:meth:`RetryPolicy.until`): parameters not read by then
+    are reported as not answered.
 
     Raises
     ------
@@ -143,20 +149,20 @@ def upload_and_verify(
     started = time.monotonic()
     try:
         try:
-            upload_mission(link, items, policy)
+            upload_mission(link, items, policy.until(ends))
         except FinalAckTimeoutError:
             if verification is Verification.NONE:
                 raise
             logger.warning("%s: final MISSION_ACK lost; the read-back decides", link.name)
         home = None
         if verification is not Verification.NONE:
-            stored = download_mission(link, policy)
+            stored = download_mission(link, policy.until(ends))
             verify_mission(link.name, items, stored, verification)
             home = stored[0] if stored else None
     except MavlinkError:
-        _discard(link, policy)
+        _discard(link, policy, ends)
         raise
-    checks = check_parameters(link, parameters, policy) if parameters else ()
+    checks = check_parameters(link, parameters, policy.until(ends)) if parameters else ()
     report = UploadReport(
         vehicle=link.name,
         system_id=link.info.system_id,
