@@ -30,6 +30,7 @@ from service.middleware import BodySizeLimit, SecurityHeaders
 from service.migrate import upgrade_database
 from service.settings import Settings, get_settings
 from service.storage import TaskStore, make_engine
+from service.uploads import UploadRunner
 
 logger = logging.getLogger(__name__)
 
@@ -74,7 +75,8 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
             executor_factory=None if executor else ours,
             shared_disk=settings.dask_scheduler is None,
         )
-        state = ServiceState(settings, store, jobs, metrics)
+        uploads = UploadRunner(settings.max_concurrent_uploads, settings.upload_timeout)
+        state = ServiceState(settings, store, jobs, metrics, uploads)
         app.state.service = state
         purge_expired(store, settings.tasks_dir, settings.retention_days)
         resumed = jobs.resume_unfinished()
@@ -87,6 +89,7 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
             sweeper.cancel()
             with suppress(asyncio.CancelledError):
                 await sweeper
+            uploads.stop()
             jobs.stop()
             store.engine.dispose()
             lock.release()

@@ -15,6 +15,7 @@ from service.jobs import JobManager
 from service.metrics import ServiceMetrics
 from service.settings import Settings
 from service.storage import TaskStore
+from service.uploads import UploadRunner
 
 
 @dataclass
@@ -25,6 +26,7 @@ class ServiceState:
     store: TaskStore
     jobs: JobManager
     metrics: ServiceMetrics
+    uploads: UploadRunner
 
 
 def get_state(request: Request) -> ServiceState:

@@ -6,6 +6,7 @@ Every refusal names the field or the object and the reason, in FastAPI's own err
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -16,7 +17,7 @@ from pydantic import BaseModel
 from sqlalchemy.exc import OperationalError
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 
-from flycrane.errors import FlyCraneError, InputError, readable_errors
+from flycrane.errors import FieldProblem, FlyCraneError, InputError, readable_errors
 from flycrane.planning.validity import InvalidConfigurationError, InvalidReason
 
 
@@ -54,6 +55,35 @@ class UploadNotAllowedError(ServiceError):
     """A vehicle address outside the configured allow-list (403)."""
 
     status_code = 403
+
+
+class SameVehicleError(InputError):
+    """Addresses of an upload that reach one vehicle (the same MAVLink system id in their
+    heartbeats): refused before anything is sent (422, each later address as
+    ``vehicles[k]``).
+
+    Attributes
+    ----------
+    addresses : tuple[str, ...]
+        The upload's addresses, drone 1 first.
+    repeats : tuple[tuple[int, int, int], ...]
+        ``(k, first, system_id)``: ``addresses[k]`` reaches the system ``addresses[first]``
+        reaches.
+    """
+
+    def __init__(self, addresses: Sequence[str], repeats: Sequence[tuple[int, int, int]]) -> None:
+        self.addresses, self.repeats = tuple(addresses), tuple(repeats)
+        super().__init__(
+            [
+                FieldProblem(
+                    f"vehicles[{k}]",
+                    f"{addresses[k]} reaches the same vehicle as vehicles[{first}] "
+                    f"({addresses[first]}): system id {system} answers on both; each drone "
+                    "needs its own vehicle, with its own system id (SYSID_THISMAV)",
+                )
+                for k, first, system in repeats
+            ]
+        )
 
 
 class UnauthorizedError(ServiceError):

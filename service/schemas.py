@@ -5,6 +5,7 @@ The task body itself is :class:`missions.task.spec.TaskSpec`, shared with ``flyc
 
 from __future__ import annotations
 
+import math
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
@@ -98,7 +99,19 @@ class ParameterDifference(BaseModel):
 
     name: str
     expected: float
-    found: float | None = Field(description="null: the vehicle does not answer for it")
+    found: float | None = Field(
+        description="the vehicle's value; null when it does not answer for it, or answers "
+        "with no number (NaN or infinity, which JSON cannot carry: see found_text)"
+    )
+    found_text: str = Field(
+        description="the vehicle's value as text ('250', 'nan', 'inf'), or 'no answer'"
+    )
+
+    @classmethod
+    def of(cls, name: str, expected: float, found: float | None) -> ParameterDifference:
+        finite = found is not None and math.isfinite(found)
+        text = "no answer" if found is None else f"{found:g}"
+        return cls(name=name, expected=expected, found=found if finite else None, found_text=text)
 
 
 class VehicleUpload(BaseModel):

@@ -97,7 +97,16 @@ class Settings(BaseSettings):
         DEFAULT_UPLOAD_DEVICES,
         description="regular expressions a vehicle's serial device path must match whole",
     )
-    upload_timeout: float = Field(60.0, gt=0, description="overall upload deadline [s]")
+    upload_timeout: float = Field(
+        60.0,
+        gt=0,
+        le=3600,
+        description="deadline of a whole upload, for each vehicle: connection, mission "
+        "transfer, read-back and parameter reads [s]",
+    )
+    max_concurrent_uploads: int = Field(
+        4, ge=1, le=64, description="uploads running at once; more are refused with 503"
+    )
     api_docs: bool = Field(
         True,
         description="serve the API's description, /openapi.json, and its documentation page, "

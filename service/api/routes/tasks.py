@@ -2,11 +2,15 @@
 
 Handlers are plain functions: FastAPI runs them in its thread pool, so a slow or locked
 database holds one thread, never the event loop (a locked SQLite answers 503 after
-``database_busy_timeout``). What they do lives in :mod:`service.artifacts` and
-:mod:`service.uploads`.
+``database_busy_timeout``). Uploads, which wait for vehicles, run on threads of their own
+instead (:class:`service.uploads.UploadRunner`). What they do lives in
+:mod:`service.artifacts` and :mod:`service.uploads`.
 """
 
 from __future__ import annotations
+
+import asyncio
+from functools import partial
 
 from fastapi import APIRouter, Query
 from fastapi.responses import FileResponse, JSONResponse, Response
@@ -162,16 +166,23 @@ def get_bundle(task_id: str, state: StateDep) -> Response:
         502: {"model": UploadPublic, "description": "a vehicle failed (see its detail)"},
     },
 )
-def upload_task(task_id: str, body: UploadCreate, state: StateDep) -> UploadPublic | JSONResponse:
+async def upload_task(
+    task_id: str, body: UploadCreate, state: StateDep
+) -> UploadPublic | JSONResponse:
     """Upload the three missions (drone k to ``vehicles[k-1]``), verify by read-back, read
     the parameters of ``drone{k}.parm`` back from each vehicle, record the outcome per
     vehicle. 502 if any vehicle failed (the others keep their mission); 409 if every mission
     is on board but a vehicle's parameters differ from the plan's (its timing holds only
-    with them: load the ``.parm`` in the ground station and upload again)."""
-    record = _record(state, task_id)
-    outcome = uploads.upload_task(record, body.vehicles, state.settings, state.jobs, state.store)
+    with them: load the ``.parm`` in the ground station and upload again); 422 if two
+    addresses reach the same vehicle (nothing is sent). It runs off the request threads,
+    at most ``FLYCRANE_MAX_CONCURRENT_UPLOADS`` at once (503 beyond), each vehicle's upload
+    within ``FLYCRANE_UPLOAD_TIMEOUT``."""
+    work = partial(
+        uploads.upload_task, task_id, body.vehicles, state.settings, state.jobs, state.store
+    )
+    outcome = await asyncio.wrap_future(state.uploads.submit(work))
     if any(not v.ok and not v.parameter_differences for v in outcome.vehicles):
-        return JSONResponse(outcome.model_dump(), status_code=502)
+        return JSONResponse(outcome.model_dump(mode="json"), status_code=502)
     if not outcome.ok:
-        return JSONResponse(outcome.model_dump(), status_code=409)
+        return JSONResponse(outcome.model_dump(mode="json"), status_code=409)
     return outcome
