@@ -3,8 +3,10 @@
 ``create_app(settings, executor)`` builds one application; its lifespan locks the data
 directory, opens the database, starts the job manager (a local process pool unless an
 executor is given), resumes the tasks a previous run left queued or running, deletes
-finished tasks past their retention (at start and hourly), and at exit stops the pool,
-killing running jobs (their rows stay as they were, for the next start to resume).
+finished tasks past their retention (at start and hourly), writes again the task outcomes
+the database refused (every few seconds, :meth:`JobManager.reconcile`), and at exit stops
+the pool, killing running jobs (their rows stay as they were, for the next start to
+resume).
 """
 
 from __future__ import annotations
@@ -48,6 +50,17 @@ async def _sweep(state: ServiceState) -> None:
             logger.exception("retention sweep failed")
 
 
+async def _reconcile(state: ServiceState) -> None:
+    """Write the task outcomes the database refused, every ``reconcile_interval`` seconds
+    (a full disk: :meth:`JobManager.reconcile`)."""
+    while True:
+        await asyncio.sleep(state.jobs.reconcile_interval)
+        try:
+            await run_in_threadpool(state.jobs.reconcile)
+        except Exception:
+            logger.exception("reconciling task outcomes failed")
+
+
 def create_app(settings: Settings | None = None, executor: Executor | None = None) -> FastAPI:
     """One application instance (tests pass their own settings and executor)."""
     settings = settings or get_settings()
@@ -82,13 +95,14 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         resumed = jobs.resume_unfinished()
         if resumed:
             logger.info("resumed %d unfinished tasks", len(resumed))
-        sweeper = asyncio.create_task(_sweep(state))
+        timers = [asyncio.create_task(_sweep(state)), asyncio.create_task(_reconcile(state))]
         try:
             yield
         finally:
-            sweeper.cancel()
-            with suppress(asyncio.CancelledError):
-                await sweeper
+            for timer in timers:
+                timer.cancel()
+                with suppress(asyncio.CancelledError):
+                    await timer
             uploads.stop()
             jobs.stop()
             store.engine.dispose()

@@ -29,6 +29,8 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from sqlalchemy.exc import SQLAlchemyError
+
 from flycrane.execution import stop_executor
 from service.errors import ServiceBusyError
 from service.metrics import ServiceMetrics
@@ -61,7 +63,8 @@ class JobSpec:
 class JobOutcome:
     """How a job ended. ``files`` (artifact path relative to the task's directory -> bytes)
     is set when the job was not given a directory: the final status is then the caller's
-    to write (``written`` False), after the files."""
+    to write (``written`` False), after the files. ``written`` is False too when the
+    database refused the job's write (a full disk): the service records it then."""
 
     status: TaskStatus
     result: dict[str, Any] | None = None
@@ -83,8 +86,7 @@ def run_job(spec: JobSpec) -> JobOutcome:
         # Started before at this attempt: the worker running it died and the executor (Dask
         # reschedules a lost worker's tasks) runs it again. Not retried: it may be what
         # killed the worker.
-        final = store.finish(spec.task_id, spec.attempt, TaskStatus.FAILED, None, WORKER_DIED)
-        return JobOutcome(final.status if final else TaskStatus.FAILED, error=WORKER_DIED)
+        return _finish(store, spec, TaskStatus.FAILED, None, WORKER_DIED)
     if spec.task_dir is not None:
         return _run(spec, store, Path(spec.task_dir))
     with tempfile.TemporaryDirectory(prefix=f"flycrane-{spec.task_id}-") as scratch:
@@ -95,6 +97,29 @@ def run_job(spec: JobSpec) -> JobOutcome:
             if path.is_file()
         }
     return replace(outcome, files=files)
+
+
+def _finish(
+    store: TaskStore,
+    spec: JobSpec,
+    status: TaskStatus,
+    result: dict[str, Any] | None,
+    error: str | None,
+) -> JobOutcome:
+    """Write the job's outcome; if the database refuses (a full disk), return it unwritten
+    for the service to record (:meth:`JobManager.reconcile`)."""
+    try:
+        final = store.finish(spec.task_id, spec.attempt, status, result, error)
+    except SQLAlchemyError as failure:
+        logger.error("task %s: outcome not recorded: %s", spec.task_id, database_reason(failure))
+        return JobOutcome(status, result, error, written=False)
+    return JobOutcome(final.status if final else status, result, error)
+
+
+def database_reason(failure: SQLAlchemyError) -> str:
+    """The database's own words, without SQLAlchemy's statement and parameters."""
+    text = str(getattr(failure, "orig", None) or failure)
+    return text.splitlines()[0] if text else type(failure).__name__
 
 
 def _run(spec: JobSpec, store: TaskStore, task_dir: Path) -> JobOutcome:
@@ -135,22 +160,32 @@ def _run(spec: JobSpec, store: TaskStore, task_dir: Path) -> JobOutcome:
         written_at, written_stage = now, stage
 
     if should_stop():
-        final = store.finish(
-            spec.task_id, spec.attempt, TaskStatus.CANCELLED, None, "cancelled before start"
-        )
-        return JobOutcome(final.status if final else TaskStatus.CANCELLED)
+        return _finish(store, spec, TaskStatus.CANCELLED, None, "cancelled before start")
     try:
         task = TaskSpec.model_validate(spec.request)
         require_served_task(task)  # rows written by an older version are checked again
         outcome = run_task(task, task_dir, progress=progress, should_stop=should_stop)
         status, result, error = TaskStatus(outcome.status), outcome.as_dict(), outcome.reason
+    except SQLAlchemyError as failure:  # a progress report the database refused
+        logger.exception("task %s failed", spec.task_id)
+        reason = f"the database refused a write: {database_reason(failure)}"
+        status, result, error = TaskStatus.FAILED, None, reason
     except Exception as failure:
         logger.exception("task %s failed", spec.task_id)
         status, result, error = TaskStatus.FAILED, None, f"{type(failure).__name__}: {failure}"
     if spec.task_dir is None:
         return JobOutcome(status, result, error or None, written=False)
-    final = store.finish(spec.task_id, spec.attempt, status, result, error or None)
-    return JobOutcome(final.status if final else status, result, error or None)
+    return _finish(store, spec, status, result, error or None)
+
+
+@dataclass(frozen=True)
+class _Final:
+    """A job's outcome, as :meth:`TaskStore.finish` writes it."""
+
+    attempt: int
+    status: TaskStatus
+    result: dict[str, Any] | None
+    error: str | None
 
 
 class JobManager:
@@ -166,7 +201,15 @@ class JobManager:
 
     ``shared_disk`` False: the executor's workers cannot write the tasks' directories; jobs
     return their artifacts and the manager writes them (module docstring).
+
+    An outcome the database refuses to record (a full disk: the job's own write failed, then
+    the manager's) is kept and written again every :attr:`reconcile_interval` seconds
+    (:meth:`reconcile`, called by the application), until it is; meanwhile :attr:`problems`
+    says so (``/healthz`` answers 503) and a cancel ends the task at once.
     """
+
+    #: How often outcomes the database refused are written again [s].
+    reconcile_interval = 2.0
 
     def __init__(
         self,
@@ -187,6 +230,8 @@ class JobManager:
         self._broken: Executor | None = None
         self._stopping = False
         self._reserved = 0  #: slots taken by tasks being stored (slot())
+        self._unwritten: dict[str, _Final] = {}  #: task id -> outcome the database refused
+        self._refusal = ""  #: the database's reason, last time it refused
         self._lock = threading.RLock()
 
     @property
@@ -199,6 +244,17 @@ class JobManager:
         """Whether new tasks can run (false once a pool broke and could not be replaced)."""
         with self._lock:
             return self._broken is None and not self._stopping
+
+    @property
+    def problems(self) -> list[str]:
+        """Why tasks cannot be recorded now (empty when they can)."""
+        with self._lock:
+            if not self._unwritten:
+                return []
+            return [
+                f"the database refused to record how {len(self._unwritten)} task(s) ended "
+                f"({self._refusal}); retrying every {self.reconcile_interval:g} s"
+            ]
 
     def task_dir(self, task_id: str) -> Path:
         return self.tasks_dir / task_id
@@ -270,18 +326,60 @@ class JobManager:
         future.add_done_callback(partial(self._finished, spec, executor))
 
     def cancel(self, task_id: str) -> TaskRecord | None:
-        """Ask a task to stop: a queued one is dropped, a running one stops at its next poll."""
+        """Ask a task to stop: a queued one is dropped, a running one stops at its next poll,
+        one that no job runs any more (its outcome unrecorded, or lost) ends at once.
+
+        Raises
+        ------
+        sqlalchemy.exc.SQLAlchemyError
+            If the database refuses the request (the API answers 503).
+        """
         record = self.store.update(task_id, cancel_requested=True)
+        if record is None or record.status.finished:
+            return record
         with self._lock:
             future, _ = self._futures.get(task_id, (None, None))
+            unwritten = self._unwritten.get(task_id)
+        if unwritten is not None:  # the job ended: its outcome, cancelled (store.finish)
+            self._record(task_id, unwritten)
+            return self.store.get(task_id)
+        if future is None:  # no job of ours runs it: nobody else would end it
+            return self.store.update(
+                task_id, status=TaskStatus.CANCELLED, error="cancelled (no job was running it)"
+            )
         # Only a job not yet started may be dropped: a Dask future is cancelled even while
         # it runs (its worker goes on), and the job then stops itself at its next poll.
-        queued = record is not None and record.status is TaskStatus.QUEUED
-        if future is not None and queued and future.cancel():
+        if record.status is TaskStatus.QUEUED and future.cancel():
             record = self.store.update(
                 task_id, status=TaskStatus.CANCELLED, error="cancelled while queued"
             )
         return record
+
+    def reconcile(self) -> None:
+        """Write again the outcomes the database refused (every :attr:`reconcile_interval`
+        seconds, from the application's lifespan)."""
+        with self._lock:
+            pending = list(self._unwritten.items())
+        for task_id, final in pending:
+            if not self._record(task_id, final):
+                return  # still refused: the others would be too
+
+    def _record(self, task_id: str, final: _Final) -> bool:
+        """Write a job's outcome (a cancel asked for meanwhile wins, :meth:`TaskStore.finish`);
+        keep it for :meth:`reconcile` if the database refuses. Whether it was written."""
+        try:
+            self.store.finish(task_id, final.attempt, final.status, final.result, final.error)
+        except SQLAlchemyError as failure:
+            reason = database_reason(failure)
+            logger.error("task %s: outcome not recorded (%s); retrying", task_id, reason)
+            with self._lock:
+                self._unwritten[task_id] = final
+                self._refusal = reason
+            return False
+        with self._lock:
+            if self._unwritten.get(task_id) is final:
+                del self._unwritten[task_id]
+        return True
 
     def resume_unfinished(self) -> list[str]:
         """After a restart: queue again every task that was queued or running."""
@@ -337,25 +435,27 @@ class JobManager:
         if future.cancelled() or stopping:
             return
         failure = future.exception()
-        if isinstance(failure, BrokenExecutor):
-            self._worker_died(task_id, executor)
-        elif failure is not None:  # the job could not start (unpicklable), or its workers
-            # kept dying (Dask's KilledWorker)
-            self.store.update(
-                task_id,
-                status=TaskStatus.FAILED,
-                error=f"worker failed: {type(failure).__name__}: {failure}",
-            )
-        else:
-            self._write_returned(spec, future.result())
-        record = self.store.get(task_id)
+        try:
+            if isinstance(failure, BrokenExecutor):
+                self._worker_died(task_id, executor)
+            elif failure is not None:  # the job could not start (unpicklable), or its
+                # workers kept dying (Dask's KilledWorker)
+                error = f"worker failed: {type(failure).__name__}: {failure}"
+                self._record(task_id, _Final(spec.attempt, TaskStatus.FAILED, None, error))
+            else:
+                self._write_returned(spec, future.result())
+            record = self.store.get(task_id)
+        except SQLAlchemyError as refused:  # a callback's error would only be logged
+            logger.error("task %s: not recorded: %s", task_id, database_reason(refused))
+            return
         if record and record.result:
             seconds = record.result.get("planner_statistics", {}).get("time")
             if seconds is not None:
                 self.metrics.planning_seconds.observe(seconds)
 
     def _write_returned(self, spec: JobSpec, outcome: JobOutcome) -> None:
-        """A job without a directory returned its artifacts: write them, then its status."""
+        """A job returned its outcome unwritten: its artifacts (a job without a directory),
+        then its status."""
         if outcome.written:
             return
         status, result, error = outcome.status, outcome.result, outcome.error
@@ -370,7 +470,7 @@ class JobManager:
         except OSError as failure:
             logger.error("task %s: artifacts not stored: %s", spec.task_id, failure)
             status, result, error = TaskStatus.FAILED, None, f"artifacts not stored: {failure}"
-        self.store.finish(spec.task_id, spec.attempt, status, result, error)
+        self._record(spec.task_id, _Final(spec.attempt, status, result, error))
 
     def _worker_died(self, task_id: str, broken: Executor) -> None:
         """A job of the broken pool ``broken``: the one that was running fails with the
@@ -380,12 +480,11 @@ class JobManager:
         if record is None or record.status.finished:
             return
         if record.status is not TaskStatus.QUEUED:
-            self.store.update(task_id, status=TaskStatus.FAILED, error=WORKER_DIED)
+            self._record(task_id, _Final(record.attempt, TaskStatus.FAILED, None, WORKER_DIED))
             return
         if not replaced:
-            self.store.update(
-                task_id, status=TaskStatus.FAILED, error="the worker pool broke (a worker died)"
-            )
+            broke = "the worker pool broke (a worker died)"
+            self._record(task_id, _Final(record.attempt, TaskStatus.FAILED, None, broke))
             return
         again = self.store.update(task_id, attempt=record.attempt + 1)
         if again is not None:

@@ -20,11 +20,13 @@ router = APIRouter(tags=["health"])
     responses={503: {"model": Health, "description": "the service cannot run tasks now"}},
 )
 def healthz(state: StateDep) -> Health | JSONResponse:
-    """Whether the service can take and run tasks: its database answers and its worker pool
-    works (a pool broken by a dead worker is replaced; one that cannot be is reported)."""
+    """Whether the service can take and run tasks: its database answers and records what
+    tasks do (a full disk refuses it), and its worker pool works (a pool broken by a dead
+    worker is replaced; one that cannot be is reported)."""
     problems = []
     if not state.jobs.healthy:
         problems.append("no usable worker pool")
+    problems += state.jobs.problems  # outcomes the database refused to record (disk full)
     try:
         with state.store.engine.connect() as connection:
             connection.execute(text("SELECT 1"))
