@@ -151,7 +151,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     """The command line; of the plug-in commands (entry points ``flycrane.commands``) only the
     one ``argv`` names is loaded, all of them when it names none (``--help``, a typo): each
-    imports its own stack (MAVLink, SITL, the service), a second on every other command."""
+    imports its own stack (MAVLink, SITL, the service), which every other command would
+    pay for."""
     parser = argparse.ArgumentParser(
         prog="flycrane",
         description="FlyCrane: statics, planning and MAVLink missions for a 3-drone aerial crane",
@@ -231,8 +232,8 @@ def run() -> None:
     """The ``flycrane`` command (console script and ``python -m flycrane.cli``): :func:`main`,
     then exit with its status. What is still alive is frozen out of the garbage collections
     the interpreter runs at exit, which would traverse numba's and matplotlib's object
-    graphs only for the process to end (0.4 s of a 3 s ``flycrane plan``). By then the
-    commands have closed their files; atexit handlers (logging's flush) still run."""
+    graphs only for the process to end. By then the commands have closed their files;
+    atexit handlers (logging's flush) still run."""
     status = main()
     gc.freeze()
     sys.exit(status)

@@ -112,8 +112,8 @@ def stop_executor(executor: Executor) -> None:
     running ones killed (``shutdown`` alone waits for them to finish, however long).
 
     Uses ``terminate_workers`` where Python has it (3.14), else the pool's process table,
-    read before ``shutdown``, which drops it: read after, it was empty, and a server that
-    stopped left its running jobs alive to write into the rows its next start resumed.
+    read before ``shutdown``, which empties it: read after, it would leave the running jobs
+    of a stopped server alive to write into the rows its next start resumes.
     """
     processes: dict[int, Any] = dict(getattr(executor, "_processes", None) or {})
     executor.shutdown(wait=False, cancel_futures=True)

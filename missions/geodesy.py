@@ -64,10 +64,11 @@ def mission_altitude(altitude: ArrayLike) -> NDArray[np.float64]:
     ``altitude``: the middle of that centimetre.
 
     Writing the centimetre itself is not enough: ``n / 100`` is often just below it in
-    float32 (0.29 is 0.28999999) or in the float64 of a planned position (6.75 m came out of
-    the ENU round trip as 6.7499995), and :func:`ardupilot_altitude` truncates both to the
-    centimetre below: a Puzzle leg planned as a 3 cm climb was flown as 4 cm, 0.36 s late on
-    SITL. Half a centimetre is far beyond float32's resolution below 80 km.
+    float32 (0.29 is 0.28999999) or in the float64 of a planned position after the ENU
+    round trip, and :func:`ardupilot_altitude` truncates both to the centimetre below,
+    which changes a short climb's length and so its timing (BENCHMARKS.md, "Flights on
+    three ArduCopter SITL autopilots"). Half a centimetre is far beyond float32's
+    resolution below 80 km.
     """
     centimetres = np.round(np.asarray(altitude, dtype=float) * 100.0)
     return (centimetres + np.copysign(0.5, centimetres)) / 100.0

@@ -17,9 +17,9 @@ flight kept, which is how the presets below were checked.
 
 Presets (:data:`PRESETS`):
 
-- ``sitl``: ArduCopter 4.5.7 SITL with the barometers calibrated at boot, measured on the
-  Rescue and Puzzle flights of BENCHMARKS.md: estimate vs truth within 4-5 cm horizontally
-  and 2-4 cm vertically; the drones' inter-distance errors p95 4-9 cm;
+- ``sitl``: ArduCopter 4.5.7 SITL with the barometers calibrated at boot: the bounds its
+  Rescue and Puzzle flights kept, estimate against truth and between the drones
+  (BENCHMARKS.md, "Moved from code comments");
 - ``rtk``: an RTK GNSS fix (receiver specifications: about 1-2 cm horizontal, 2-3 cm
   vertical) plus a copter's tracking of a slow path, a few centimetres: a stated
   assumption, not measured here;

@@ -87,8 +87,8 @@ def least_margins(profile: PathProfile, system: CableSystem) -> LeastMargins:
 
 def _figure():
     """A two-panel figure (tensions, thrusts). A bare Figure draws with Agg and is freed
-    with its last reference: no pyplot, whose import and figure manager cost a third of a
-    second per task and which is not thread-safe."""
+    with its last reference: no pyplot, whose import and figure manager cost time on
+    every task and which is not thread-safe."""
     from matplotlib.figure import Figure
 
     figure = Figure(figsize=(12, 4.5))
@@ -98,8 +98,8 @@ def _figure():
 def _save(figure, out: str | Path, title: str) -> Path:
     if title:
         figure.suptitle(title, parse_math=False)  # a task name is text, not mathtext
-    # Fixed margins: tight_layout draws the figure once more to measure it (a third of the
-    # plot's time), for a layout that these two fixed panels do not need.
+    # Fixed margins: tight_layout draws the figure once more to measure it, for a layout
+    # that these two fixed panels do not need.
     figure.subplots_adjust(left=0.06, right=0.98, bottom=0.12, top=0.86, wspace=0.18)
     out = Path(out)
     figure.savefig(out, dpi=120)

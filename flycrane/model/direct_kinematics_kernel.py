@@ -9,8 +9,9 @@ reference only in rounding, and in that each row stops at its own convergence in
 stepping on until every row has converged.
 
 Why compiled: the timing tolerance simulates some 60 flights of ~1,100 samples each per
-task, and numpy's per-call cost on the small (N, 6, 6) arrays of every Newton step put
-them at 0.6 s of a 3.5 s ``flycrane plan``.
+task, and numpy's per-call cost on the small (N, 6, 6) arrays of every Newton step made
+them a large share of a ``flycrane plan`` (BENCHMARKS.md, "``flycrane plan`` end to end",
+"Fourth round").
 """
 
 from __future__ import annotations

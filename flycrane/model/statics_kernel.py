@@ -9,7 +9,8 @@ J is factorized once per row by Gaussian elimination with partial pivoting and t
 Hadamard-ratio singularity test as the reference.
 
 Why compiled: numpy spends ~1 us per call on every small array operation, which puts one
-configuration at ~300 us; the planner evaluates single configurations in its inner loop.
+configuration at hundreds of microseconds; the planner evaluates single configurations in
+its inner loop (BENCHMARKS.md, "Cost evaluations per second").
 """
 
 from __future__ import annotations
@@ -37,8 +38,7 @@ def eliminate(a, b) -> float:
     """Gaussian elimination with partial pivoting of a x = b in place: a (6, 6) becomes
     upper triangular, b (6, k) follows; returns det(a) from the pivots (0 at the first zero
     pivot, where it stops). The statics' and the direct kinematics' 6 x 6 systems; the size
-    is a constant, not a.shape[0], so the compiler knows the loops' bounds (the cost kernel
-    ran 10 % slower with them read from the array)."""
+    is a constant, not a.shape[0], so the compiler knows the loops' bounds."""
     n, k = 6, b.shape[1]
     det = 1.0
     for col in range(n):
@@ -80,8 +80,8 @@ def back_substitute(a, b) -> None:
 def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
     """Statics of one configuration q (9,): f0 (6,), v (6,), m (3,) into the outputs; returns
     the cost (+inf where infeasible or singular; then the outputs are +inf). ``model`` is
-    :func:`statics_model`'s tuple, ``work`` scratch of STATICS_WORK floats (allocating it
-    per row cost a fifth of the kernel's time)."""
+    :func:`statics_model`'s tuple, ``work`` scratch of STATICS_WORK floats, so that a row
+    allocates nothing."""
     (
         points,
         foot,

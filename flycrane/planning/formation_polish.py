@@ -26,13 +26,12 @@ What it may move, and why so little:
 - only waypoints whose local paths come within ``band`` (0.1 N) of the path's least
   thrust margin or headroom: a reshaped formation is a manoeuvre the three drones must fly
   in step, and the average cost (avgC) rises with every move;
-- each alpha at most ``reach`` (0.1 rad) from the planner's: unbounded, the polish took
-  alphas to the ends of their range and reshaped the formation in the Puzzle's passage,
-  and on three ArduCopter SITL autopilots 2 of 14 of those Puzzle missions put the load
-  into the slab, repeatably; with 0.1 rad none did, in two runs of 29 (BENCHMARKS.md,
-  "Planner v2, the default"). Even so, a third of the polished Puzzle missions have an
-  early leg (a drone's level leg slower than ArduCopter's speed floor) and their drones
-  drift further apart in flight than T-RRT's; the same section has the figures.
+- each alpha at most ``reach`` (0.1 rad) from the planner's: unbounded, the polish takes
+  alphas to the ends of their range and reshapes the formation inside a passage, which
+  the drones fly out of step and into the obstacle (BENCHMARKS.md, "Planner v2, the
+  default"). Even so, a polished formation can leave a drone a level leg slower than
+  ArduCopter's ground-speed floor (an early leg), and such missions drift further apart
+  in flight (the same section).
 
 A soft minimum (-tau log sum exp(-t / tau)) rather than the minimum: where several
 waypoints share a low-margin stretch, moving one of them cannot raise the stretch's hard

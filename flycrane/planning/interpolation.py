@@ -6,8 +6,8 @@ constant angular rate about one fixed axis), and each alpha on the short arc of 
 That is the shortest path of the state space's metric (its chordal distance is a monotone
 function of each part's angle), so a path sampled at a step in that metric is sampled at
 that step on the platform and the drones. Interpolating the tilt-and-torsion numbers
-themselves, as earlier code did, is not a geodesic: when the tilt axis reverses, the chart
-path rotates 1.56x further than the geodesic.
+themselves is not a geodesic: where the tilt axis reverses, the chart's path rotates much
+further than the geodesic.
 
 Quaternion of ``R = Rz(phi) Ry(theta) Rz(sigma - phi)`` (paper eq. 1), from the product of
 the three factors' quaternions::
@@ -31,26 +31,11 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-#: Columns of q that are angles on the circle (phi, sigma, alpha1..3); theta is not: it lives
-#: in [0, pi] and never wraps.
-CIRCULAR = np.array([3, 5, 6, 7, 8])
-
 
 def wrap_angle(angle: ArrayLike) -> NDArray[np.float64]:
     """Angles wrapped into (-pi, pi]."""
     wrapped = np.remainder(np.asarray(angle, dtype=float) + np.pi, 2.0 * np.pi) - np.pi
     return np.where(wrapped == -np.pi, np.pi, wrapped)
-
-
-def configuration_difference(q_from: ArrayLike, q_to: ArrayLike) -> NDArray[np.float64]:
-    """Coordinate-wise displacement from q_from to q_to, angles the short way, (..., 9).
-
-    This is a chart difference (phi and sigma are not a rotation's coordinates); the local
-    path rotates along the geodesic instead (module docstring).
-    """
-    delta = np.asarray(q_to, dtype=float) - np.asarray(q_from, dtype=float)
-    delta[..., CIRCULAR] = wrap_angle(delta[..., CIRCULAR])
-    return delta
 
 
 @numba.njit(cache=True, nogil=True)

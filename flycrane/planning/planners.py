@@ -37,9 +37,9 @@ TRRT_ONLY = ("goal_bias", "goal_connection", "init_temperature", "refinement_rat
 class PlannerOptions(BaseModel):
     """Which planner, with which parameters (default: ``bitrrt``, which solves the users'
     scenes T-RRT does not, and whose polished paths, where T-RRT solves, cost less and keep
-    every margin of Fig. 6 at least as well (the Rescue's headroom a tie): BENCHMARKS.md
-    "Planner v2"; in scenes with triangle meshes, which bitrrt does not check, the default
-    is ``trrt``, the paper's T-RRT)."""
+    every margin of Fig. 6 at least as well: BENCHMARKS.md "Planner v2"; in scenes with
+    triangle meshes, which bitrrt does not check, the default is ``trrt``, the paper's
+    T-RRT)."""
 
     # Finite numbers only; seeds and counts are integers, not booleans or strings.
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)

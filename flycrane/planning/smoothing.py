@@ -64,8 +64,8 @@ def shortcut_path(
         if i == j:
             continue  # both on one straight segment: nothing to shorten
         # The two cut segments are checked too: they lie on valid motions, but the checker
-        # samples them at other points (a Rescue path's cut segment grazed a roof by 0.3 mm
-        # between the samples of the motion it was cut from).
+        # samples them at other points, between which a cut segment can graze an obstacle
+        # (BENCHMARKS.md, "Planner v2, the default").
         if not (
             validity.motion_is_valid(q_a, q_b)
             and validity.motion_is_valid(path[i], q_a)

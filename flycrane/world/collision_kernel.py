@@ -328,7 +328,7 @@ def collision_free_row(q, kin, scene, work) -> bool:
     if not pose_free(q, kin, scene, work):
         return False
     # A loop, not drone_free(q, 0, ...) ... (q, 2, ...): constant arguments are literals to
-    # numba, which compiled drone_free three times (2 s of CPU in a fresh install's first run).
+    # numba, which would compile drone_free three times.
     for k in range(3):
         if not drone_free(q, k, kin, scene, work):
             return False

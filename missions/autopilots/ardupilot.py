@@ -1,31 +1,56 @@
 """What ArduCopter (4.5) does with our missions, and the parameters the plan assumes.
 
-Gathered in one place, each with the reason and where it was measured or read (design.md
-section 9; ``docs/missions.md`` "What ArduCopter does"):
+The one place that states ArduCopter's behaviour; other modules refer here. Each fact was
+read in ArduPilot's source or seen on the 4.5.7 SITL binary (design.md section 9;
+``docs/missions.md`` "What ArduCopter does"; the flights behind them are in BENCHMARKS.md).
 
 - **Timed legs are spline waypoints** (NAV_SPLINE_WAYPOINT). A straight NAV_WAYPOINT leg
   is an S-curve built when the *previous* waypoint starts, with the speed in force then: a
   DO_CHANGE_SPEED before a leg reaches it one leg late and only partly (short legs keep the
-  old speed), which is what stretched our first SITL flights to 1.2x and 2.2x the plan. A
-  spline leg reads its speed limits at every step, so each leg flies at its own speed
-  (:mod:`missions.autopilots.spline` models it step by step).
+  old speed), so straight legs cannot be timed one by one. A spline leg reads its speed
+  limits at every step, so each leg flies at its own speed (:mod:`missions.autopilots.spline`
+  models it step by step: its tangents, its speed law, and the position controller it gets
+  no acceleration feed-forward from).
+- **Around a spline leg**: ArduCopter takes the next nav item's location when it sets a
+  spline leg up (a zero latitude and longitude, or altitude, stand for the leg's own:
+  ``loc_from_cmd``), so a NAV_DELAY, which has none, must not stand next to a spline
+  waypoint (the legs before and after it are "reached" at once). A spline leg after any
+  other nav item starts from rest.
+- **Home**: arming sets home where the vehicle stands (its position reference, a frame
+  height above the ground), and relative altitudes count from it. Seq 0 of a mission is
+  the home slot: it reads back as the current home, whatever was uploaded there.
 - **Start**: takeoff to the start, hold there in NAV_LOITER_UNLIM, released by the ground
   station with MISSION_SET_CURRENT to the item after the hold, sent to the three back to
-  back: the take-offs lift 0.27-0.41 s apart and any hold timer runs from each drone's own
-  arrival, but a release reaches all three within a millisecond.
-- **Speeds**: DO_CHANGE_SPEED ground (param1 1), climb (2) and descent (3) speeds; a ground
-  speed below 20 cm/s is ignored (WPNAV_WP_SPEED_MIN), climb and descent speeds have no
-  floor. **Only the first DO item before a leg runs before the leg is set up**: AP_Mission
-  starts one DO item with the nav item and each further one a main-loop tick (2.5 ms)
-  later, after the leg has fixed the speed it may end with (the next leg's entry limit,
-  which a later DO no longer changes). So a leg's exit speed follows the previous leg's
-  limits with only its first DO item applied (:func:`limits_at_setup`): seen in the SITL
-  flights' DataFlash logs ("Mission: 27 ChangeSpeed", "29 SplineWP", "28 ChangeSpeed" 2.5 ms
-  later) and in their speeds (Rescue drone 1 left leg 12 at the 0.19 m/s its old 0.10 m/s
-  descent limit allowed, not the 0.39 m/s of its new 1.5 m/s).
+  back. The take-offs do not lift together, a take-off closes its last centimetres of
+  height slowly, and any hold timer runs from each drone's own arrival; a release sent back
+  to back reaches the three together. MISSION_SET_CURRENT during a mission runs the named
+  item at once, its DO items first, keeping the speed limits set so far.
+- **Speeds**: DO_CHANGE_SPEED ground (param1 1; 0, airspeed, is Copter's ground speed too),
+  climb (2) and descent (3) speeds; a ground speed below :data:`MIN_GROUND_SPEED`
+  (WPNAV_WP_SPEED_MIN) is ignored, climb and descent speeds have no floor. **Only the first
+  DO item before a leg runs before the leg is set up**: AP_Mission starts one DO item with
+  the nav item and each further one a main-loop tick (2.5 ms) later, after the leg has
+  fixed the speed it may end with (the next leg's entry limit, which a later DO no longer
+  changes). So a leg's exit speed follows the previous leg's limits with only its first DO
+  item applied (:func:`limits_at_setup`), as the SITL flights' DataFlash logs and speeds
+  show (BENCHMARKS.md, "Moved from code comments").
+- **Mission protocol** (``MissionItemProtocol``, ``AP_Mission``): upload items are asked
+  for with the deprecated MISSION_REQUEST, again after 1 s of silence, and the upload is
+  cancelled after 8 s; items are stored as they arrive, so a failed upload leaves a half
+  mission behind; an item that was not asked for gets MAV_MISSION_INVALID_SEQUENCE and the
+  transfer stays open, and once a transfer is over a re-sent item gets no answer. While
+  booting, MISSION_COUNT gets MAV_MISSION_NO_SPACE. A location's altitude is stored in
+  whole centimetres, truncated (:func:`missions.geodesy.ardupilot_altitude`); a command
+  without a location sent in frame MISSION reads back in frame GLOBAL
+  (:func:`missions.mavlink.messages.ardupilot_readback` says how every item reads back).
+- **Parameter protocol** (``GCS_Param.cpp``, ``AP_Param::set_float``): PARAM_SET and
+  PARAM_REQUEST_READ are answered with PARAM_VALUE holding the value now held (an integer
+  parameter takes the float plus 0.01 away from zero, truncated and clamped; NaN and
+  infinity are ignored); **an unknown name gets no answer at all**.
 - **Parameters** (:class:`ArduCopterSettings`, written to each drone's ``.parm`` and
   checked on the vehicle at upload). BARO_GND_TEMP is deliberately absent: changing it on a
-  powered vehicle moved SITL's altitude estimate by 27 m (design.md section 9).
+  powered vehicle makes its altitude estimate jump (BENCHMARKS.md, "Moved from code
+  comments"); only a defaults file, read before the barometers calibrate, may set it.
 """
 
 from __future__ import annotations
@@ -34,7 +59,8 @@ from dataclasses import dataclass, replace
 
 from missions.autopilots.spline import AccelLimits, SpeedLimits, Tracking
 
-#: ArduCopter ignores DO_CHANGE_SPEED ground speeds below this (AC_WPNav, Copter 4.5) [m/s].
+#: ArduCopter ignores DO_CHANGE_SPEED ground speeds below this (AC_WPNav's
+#: WPNAV_WP_SPEED_MIN, 20 cm/s in Copter 4.5) [m/s].
 MIN_GROUND_SPEED = 0.20
 #: WPNAV_ACCEL and WPNAV_ACCEL_Z bounds (ArduCopter's parameter ranges) [m/s^2].
 ACCEL_RANGE = (0.5, 5.0)
@@ -82,11 +108,8 @@ class ArduCopterSettings:
     velocity_p_z: float = 5.0  #: PSC_VELZ_P
     #: How fast the airframe reaches the horizontal and the vertical acceleration it is
     #: asked for [s] (not parameters: its attitude and thrust response), calibrated on the
-    #: Rescue and Puzzle SITL flights of tests/missions/data: with 0.05 s and 0.05 s their
-    #: 111 legs match SITL's within 3.8 % (rms 1.3 %), and the 60 legs of a later Puzzle
-    #: flight (planned with this model) within 6.9 % (rms 1.5 %). Horizontally 0.01-0.05 s
-    #: fit alike (rms within 0.2 %), 0.1 s and more worse (0.15 s: 10.1 % on the later
-    #: flight); vertically 0.02-0.1 s alike.
+    #: Rescue and Puzzle SITL flights of tests/missions/data, whose leg times it matches
+    #: within a few per cent (BENCHMARKS.md, "Moved from code comments").
     accel_lag: float = 0.05
     accel_lag_z: float = 0.05
 

@@ -2,16 +2,15 @@
 point, one set of speed limits per leg (the DO_CHANGE_SPEED items before it), stopping at
 the last point (the final hold).
 
-Each leg is set up when it starts, with the limits in force then; the speed at which it may
-end is the next leg's entry limit computed with those limits (ArduPilot sets the next leg up
-before that leg's DO items run), which are the previous leg's with only the first of this
-leg's DO items applied (:func:`~missions.autopilots.ardupilot.limits_at_setup`); the next
-leg starts at the speed the previous one ended with (:mod:`missions.autopilots.spline`).
+Each leg is set up when it starts, with the limits in force then: the previous leg's with
+only the first of this leg's DO items applied (ArduCopter's rule,
+:func:`~missions.autopilots.ardupilot.limits_at_setup`); the speed at which it may end is
+the next leg's entry limit computed with those limits, and the next leg starts at the speed
+the previous one ended with (:mod:`missions.autopilots.spline`).
 
 Both the target and the modelled vehicle are kept: the vehicle is where the drone will be
-(on the Rescue and Puzzle SITL flights it was nearer the flown positions than the target
-was: p95 0.07-0.14 m against 0.08-0.20 m, BENCHMARKS.md), so plans are checked and flights
-judged against it.
+(nearer the flown positions than the target: BENCHMARKS.md, "Moved from code comments"), so
+plans are checked and flights judged against it.
 """
 
 from __future__ import annotations

@@ -14,13 +14,14 @@ Leg by leg from the release, with the model of :mod:`missions.autopilots.spline`
    target being the leg's end time minus the drone's *modelled* arrival at its start, so an
    error on one leg is taken back on the next instead of adding up.
 
-A horizontal limit cannot be set below 20 cm/s (ArduCopter ignores it). A mostly horizontal
-leg that must be slower is timed by its climb or descent limit instead, if it climbs or
-descends at all (by a stored centimetre), with its horizontal limit held at the 20 cm/s
-floor rather than generous: where the spline levels off and the vertical limit lets go,
-the floor still bounds the speed. A level leg that should be slower is flown at 20 cm/s and
-reported as early (:attr:`FleetSpeeds.early`), and the flight plan merges it with a
-neighbour where it can (:mod:`missions.trajectory.flight_plan`).
+A horizontal limit cannot be set below ArduCopter's ground-speed floor
+(:data:`~missions.autopilots.ardupilot.MIN_GROUND_SPEED`). A mostly horizontal leg that
+must be slower is timed by its climb or descent limit instead, if it climbs or descends at
+all (by a stored centimetre), with its horizontal limit held at the floor rather than
+generous: where the spline levels off and the vertical limit lets go, the floor still
+bounds the speed. A level leg that should be slower is flown at the floor and reported as
+early (:attr:`FleetSpeeds.early`), and the flight plan merges it with a neighbour where it
+can (:mod:`missions.trajectory.flight_plan`).
 """
 
 from __future__ import annotations
@@ -84,8 +85,9 @@ class LegFlights:
     """Outcomes of leg flights by their exact inputs, for the timings of one flight plan.
     The plan times one set of waypoints after another (a leg split, a waypoint dropped), and
     every leg before the change is set up exactly as before, so the search's trial flights
-    there repeat (Rescue: 1.0 M of the second timing's 1.3 M simulated steps). Only the
-    outcomes are kept: the trajectories raised the Rescue's peak memory by 60 MB."""
+    there repeat, most of a later timing's (BENCHMARKS.md, "``flycrane plan`` end to end",
+    "Second round"). Only the outcomes are kept: the trajectories would cost memory in
+    proportion to every trial flight."""
 
     def __init__(self) -> None:
         self._known: dict[tuple, LegOutcome] = {}

@@ -3,11 +3,16 @@ them in Copter 4.5, for a chain of spline waypoints flown without stopping.
 
 **Geometry.** Each leg from P0 to P1 is a cubic Hermite curve in a parameter u in [0, 1],
 ``P(u) = P0 + V0 u + (3 (P1 - P0) - 2 V0 - V1) u^2 + (2 (P0 - P1) + V0 + V1) u^3``. Its end
-tangents follow AC_WPNav's rule: at a waypoint between two spline legs the tangent is the
-vector from the previous waypoint to the next one (``P(k+1) - P(k-1)``, twice the
-Catmull-Rom tangent); a leg starting from rest (after a hold) has a zero origin tangent, and
-one ending at a stop (the next item is not a spline leg, e.g. the final hold at the same
-place) a zero destination tangent. If ``|V0| + |V1|`` exceeds four times the chord, both are
+tangents are set when the leg starts (``ModeAuto::do_spline_wp``,
+``AC_WPNav::set_spline_destination`` and ``set_spline_destination_next``): the origin
+tangent is the previous spline leg's destination tangent (as given, before it is scaled)
+when the vehicle flies on through the waypoint, zero when it starts from rest (after any
+other nav item, a stop, or a jump); the destination tangent is the vector from the leg's
+origin to the next nav item if that is a spline waypoint, else from the leg's destination
+to it. So between two spline legs the tangent is the vector from the previous waypoint to
+the next one (``P(k+1) - P(k-1)``, twice the Catmull-Rom tangent), and a leg ending at a
+stop (a hold time at the waypoint, or a next item at the same place, as the final hold)
+has a zero destination tangent. If ``|V0| + |V1|`` exceeds four times the chord, both are
 scaled down to that (SplineCurve's SPLINE_FACTOR).
 
 **Speed**, every step of ``dt`` (400 Hz on the vehicle): the largest speed along the curve's
@@ -27,11 +32,11 @@ So the vehicle's own response matters: :class:`Tracking` models it as the positi
 controller's gains (horizontal and vertical apart, as AC_PosControl has them) and a
 first-order lag on the acceleration the airframe reaches. On a spline leg AC_WPNav hands the
 position controller the target's position and velocity but **no acceleration** (its
-``target_accel`` stays zero: read in AC_WPNav 4.5, and every desired acceleration in the
-SITL flights' PSC logs is 0 while the desired speed changes at up to 1.3 m/s^2), so the
-vehicle feels a speed change only through its velocity error and overshoots a braking
-target: that keeps it ahead of the target at the end of a slow stop, where a feed-forward
-model had it catch up and slow the clock (``docs/missions.md``, the mock's calibration).
+``target_accel`` stays zero: read in AC_WPNav 4.5 and seen in the SITL flights' PSC logs,
+BENCHMARKS.md "Moved from code comments"), so the vehicle feels a speed change only
+through its velocity error and overshoots a braking target: that keeps it ahead of the
+target at the end of a slow stop, where a model with feed-forward would have it catch up
+and slow the clock (``docs/missions.md``, the mock's calibration).
 """
 
 from __future__ import annotations

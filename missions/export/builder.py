@@ -27,9 +27,8 @@ drone brakes to rest there (ArduPilot's spline leg then ends with a zero tangent
 that lies within the clearance of a surface is reached by the take-off itself, which lifts
 the load (``missions.trajectory.vertical_legs``).
 
-NAV_DELAY must not stand next to a spline waypoint: ArduCopter takes the next nav item's
-location when it sets a spline up, and a NAV_DELAY has none (seen on 4.5.7 SITL: the spline
-legs before and after one were "reached" at once).
+No NAV_DELAY stands next to a spline waypoint (ArduCopter's rule,
+:mod:`missions.autopilots.ardupilot`, "Around a spline leg").
 """
 
 from __future__ import annotations

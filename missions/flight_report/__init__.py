@@ -1,10 +1,11 @@
 """Flight reports: how a recorded flight went against its plan, and whether it was safe.
 
-- :mod:`.log` reads one drone's tlog (estimate, truth where a simulator gives it, events);
+- :mod:`.vehicle_log` reads one drone's tlog (estimate, truth where a simulator gives it,
+  events);
 - :mod:`.alignment` puts the three drones on one mission time;
-- :mod:`.plan` reads what the drones were told (a task's directory);
+- :mod:`.planned_flight` reads what the drones were told (a task's directory);
 - :mod:`.report` computes every figure and the verdict, :mod:`.plot` draws them and
-  :mod:`.flight_log` logs them for Foxglove.
+  :mod:`.flight_mcap` logs them for Foxglove.
 
 :func:`report_sitl_flight` reports a flight our SITL harness recorded (its directory has
 ``flight.json``), :func:`report_tlogs` any three tlogs of a task's missions (a real flight
@@ -58,7 +59,7 @@ def write_report(
     report: FlightReport, plan: PlannedFlight, out_dir: Path, title: str = ""
 ) -> dict[str, Path]:
     """``report.json``, ``report.png``, ``flown.json`` (the safety source's drones on
-    mission time, for the viewer) and ``flight.mcap`` (:mod:`.flight_log`) into
+    mission time, for the viewer) and ``flight.mcap`` (:mod:`.flight_mcap`) into
     ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / REPORT_FILE).write_text(dumps(report.as_dict()), encoding="utf-8")

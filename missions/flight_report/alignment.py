@@ -13,7 +13,7 @@ release on the common clock, relative to the first. From the release on, each dr
 clock measures its flight (no drift between simulators, no network delay in the samples).
 
 A drone's release on its own clock is the first MISSION_CURRENT naming the released item
-(to half a stream period, :mod:`.log`). On the common clock it is
+(to half a stream period, :mod:`.vehicle_log`). On the common clock it is
 
 - **the ground's send** of its MISSION_SET_CURRENT (our SITL harness knows it): on loopback
   a message reaches the vehicle within microseconds, and a simulator handles it at its next

@@ -12,10 +12,10 @@ Two logs say when: the telemetry log (MISSION_CURRENT changes and MISSION_ITEM_R
 :mod:`missions.flight_report.vehicle_log`), timed by the midpoint of the stream samples around them
 (within half a stream period, 10 ms at 50 Hz), and ArduPilot's own DataFlash log, whose MSG
 records "Mission: N ..." and "Reached command #N" carry the vehicle's microseconds (within
-its 2.5 ms loop). On the recorded SITL flights the two differ by up to 33 ms per leg, 15 %
-of the shortest (0.21 s) legs, so the DataFlash times are the reference the mock is held
-against (``tests/missions/data/README.md``); a mock, which writes no DataFlash log, is read
-from its telemetry with a stream at every simulation step.
+its 2.5 ms loop). The two differ by a sizeable share of the shortest legs, so the
+DataFlash times are the reference the mock is held against (``tests/missions/data/
+README.md`` has both); a mock, which writes no DataFlash log, is read from its telemetry
+with a stream at every simulation step.
 
 ``benchmarks/sitl_leg_times.py`` writes the test data of recorded SITL flights with it.
 """

@@ -25,12 +25,11 @@ parameters the plan assumes (when the flight says so): the load itself, and the 
 conditions the plan's timing tolerance rests on. Drones apart in progress by more than
 that tolerance (p95) are a *warning*, not a verdict: progress is the nearest point of a
 drone's own path, so it mixes timing with the drone's distance from that path and grows
-as speed falls (a Puzzle flight on SITL showed 0.28 s of progress spread where the three
-drones' distances were within 3.4 cm of the plan's, p95); the load's own geometry is the
-evidence that counts. So is a formation that sat at rest, on median, further from the plan
-than the position-error model's common bounds allow: the clearance the plan kept rests on them,
-and a steady offset of all three drones is a frame error (a wrong home height put every
-drone of every SITL flight about 9 cm above the plan) or a steady push.
+as speed falls (BENCHMARKS.md, "Moved from code comments"); the load's own geometry is
+the evidence that counts. So is a formation that sat at rest, on median, further from the
+plan than the position-error model's common bounds allow: the clearance the plan kept rests
+on them, and a steady offset of all three drones is a frame error (a wrong home height,
+BENCHMARKS.md "Home height") or a steady push.
 """
 
 from __future__ import annotations
@@ -52,15 +51,14 @@ from missions.flight_report.vehicle_log import PositionSeries, VehicleLog
 from missions.position_error import position_error_model
 from missions.trajectory.motion import forward_progress
 
-#: Reconstructions per second of mission time (the issue asks for >= 5 Hz).
+#: Reconstructions per second of mission time (a report must give at least 5 Hz).
 REPORT_RATE_HZ = 10.0
 #: A drone has arrived when it is this much closer to its last waypoint than where it
 #: settles in the hold after it [m] (an estimate may settle centimetres off the target).
 ARRIVAL_TOLERANCE_M = 0.02
 #: Progress is defined where the drone's modelled speed is at least this [m/s]: a
 #: hovering drone is equally near every instant of its hover, and a slow one's progress is
-#: dominated by the position estimate's noise (2 cm at 10 cm/s is 0.2 s: a set-down's
-#: last centimetres showed 0.5 s of spread in SITL while the drones were in step).
+#: dominated by the position estimate's noise (2 cm at 10 cm/s is 0.2 s).
 MOVING_SPEED = 0.2
 #: The model has the drones at rest below this speed [m/s] (:func:`_common_offset_at_rest`).
 REST_SPEED = 0.02
@@ -85,7 +83,7 @@ class SourceFigures:
     #: hold at the release, stops, the final hold): the median of the three drones' mean
     #: displacement, ENU, over those samples (NaN without any). A frame error common to the
     #: drones (home altitude, origin) shows here, and the load moves with it; in motion the
-    #: drones' lag along the path would mix in (a 0.5 m/s climb lags 0.1 m on SITL)
+    #: drones' lag along the path would mix in (BENCHMARKS.md, "Home height")
     common_offset_at_rest: tuple[float, float, float]
     converged: bool  #: every reconstruction converged
     feasible: bool  #: every reconstruction wrench- and thrust-feasible

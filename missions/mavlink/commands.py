@@ -5,8 +5,8 @@ COMMAND_ACK arrives; a MAV_RESULT other than ACCEPTED raises :class:`CommandReje
 Re-sending is safe for the commands used here: arming an armed vehicle and starting a
 running mission are both accepted without effect by ArduCopter.
 
-Starting several vehicles: design.md section 9 measured that one MISSION_START sent to all
-keeps three copters within 0.13 m of the plan. :func:`start_missions` builds the command
+Starting several vehicles: one MISSION_START sent to all at once starts them together
+(design.md section 9). :func:`start_missions` builds the command
 for every vehicle first and then sends them back to back (one packing and one socket write
 each, tens of microseconds), so the vehicles receive it within a fraction of a millisecond
 of each other on a local network (the spread is measured and reported); only a vehicle

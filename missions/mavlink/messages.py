@@ -195,8 +195,8 @@ _STORED_LOCATION = frozenset(
 
 def ardupilot_frame(item: MissionItem) -> MissionItem:
     """``item`` with the frame ArduCopter reads it back in: a command without a location
-    (DO_CHANGE_SPEED) sent in frame MISSION comes back in frame GLOBAL (0) (seen on
-    ArduCopter 4.5.7 SITL: AP_Mission keeps no frame for it)."""
+    (DO_CHANGE_SPEED) sent in frame MISSION comes back in frame GLOBAL (0): AP_Mission keeps
+    no frame for it (:mod:`missions.autopilots.ardupilot`)."""
     if int(item.command) in _STORED_LOCATION or item.frame != MavFrame.MISSION:
         return item
     return replace(item, frame=MavFrame.GLOBAL)

@@ -2,10 +2,11 @@
 ``.parm`` file.
 
 PARAM_REQUEST_READ and PARAM_SET are both answered by PARAM_VALUE with the value the vehicle
-holds afterwards; silence is re-sent per :class:`~missions.mavlink.policy.RetryPolicy`.
-ArduPilot stays silent for a name it does not know. Values travel as float32 whatever the
-parameter's type, so a value is "as expected" when it equals the expected one rounded to
-float32 to a relative ``1e-6`` (integer parameters come back exact).
+holds afterwards; silence is re-sent per :class:`~missions.mavlink.policy.RetryPolicy`
+(ArduCopter answers nothing for a name it does not know,
+:mod:`missions.autopilots.ardupilot`). Values travel as float32 whatever the parameter's
+type, so a value is "as expected" when it equals the expected one rounded to float32 to a
+relative ``1e-6`` (integer parameters come back exact).
 """
 
 from __future__ import annotations

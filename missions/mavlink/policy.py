@@ -12,9 +12,9 @@ How the numbers are used (``transfer.py``, ``commands.py``, ``transport.py``):
   ``deadline_s`` whatever happens, so a vehicle that keeps answering but never finishes
   (e.g. re-requesting the same item forever) cannot hang the caller.
 - ``MAV_MISSION_NO_SPACE`` in answer to MISSION_COUNT is what ArduCopter says while it boots
-  (design.md section 9), so during the first ``no_space_retry_s`` of a transfer the count is
-  sent again every ``no_space_backoff_s``; after that NO_SPACE is final (a mission really
-  too large for the vehicle).
+  (:mod:`missions.autopilots.ardupilot`), so during the first ``no_space_retry_s`` of a
+  transfer the count is sent again every ``no_space_backoff_s``; after that NO_SPACE is
+  final (a mission really too large for the vehicle).
 - The first HEARTBEAT is awaited ``heartbeat_timeout_s``, while the ground side sends its
   own GCS heartbeat every ``gcs_heartbeat_interval_s`` (a vehicle listening on UDP only
   learns where to send once it has heard from us).

@@ -7,7 +7,7 @@ mission events) and handles what arrives after every step and while it waits for
 Every period is simulated time, so a mock at speed-up 10 heartbeats at 10 Hz of wall time.
 
 Behaviour copied from ArduCopter 4.5 SITL where a ground station can tell the difference
-(design.md section 9; the mission protocol itself is in :mod:`.mock_mission`):
+(design.md section 9; the mission protocol itself is in :mod:`.mission_server`):
 
 - GLOBAL_POSITION_INT and periodic MISSION_CURRENT only after a stream request:
   MAV_CMD_SET_MESSAGE_INTERVAL (either message) or REQUEST_DATA_STREAM (POSITION,
@@ -15,18 +15,18 @@ Behaviour copied from ArduCopter 4.5 SITL where a ground station can tell the di
   MISSION_ITEM_REACHED when one completes. ``time_boot_ms`` counts simulated milliseconds
   since the clock's epoch, so mocks sharing a clock have comparable timestamps.
 - COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (refused while booting; disarm refused in the
-  air unless forced with param2 = 21196). Arming makes the current position the home, which
-  seq 0 then reads back as.
+  air unless forced with param2 = 21196). Arming makes the current position the home
+  (:mod:`missions.autopilots.ardupilot`, "Home").
 - MAV_CMD_MISSION_START: refused (DENIED) while disarmed, FAILED without a mission or when
   the first nav item is not a takeoff while on the ground ("Auto: Missing Takeoff Cmd");
   accepted without effect while the mission runs (ArduCopter's start_or_resume); it starts
   from the item set by MISSION_SET_CURRENT, else from seq 1, with the vehicle's parameters
   as they are then.
 - MISSION_SET_CURRENT is confirmed by a MISSION_CURRENT naming the item; while the mission
-  runs, the vehicle jumps there at once (:meth:`~.mock_flight.KinematicFlight.jump`), the
+  runs, the vehicle jumps there at once (:meth:`~.kinematic_flight.KinematicFlight.jump`), the
   release of the three drones from their hold (design.md section 9).
 - Parameters: PARAM_SET, PARAM_REQUEST_READ and PARAM_REQUEST_LIST as ArduPilot answers
-  them (:mod:`.mock_params`); the navigation parameters fly the spline legs.
+  them (:mod:`.parameters`); the navigation parameters fly the spline legs.
 - Unknown commands: MAV_RESULT_UNSUPPORTED.
 """
 
@@ -104,7 +104,7 @@ class MockConfig:
     arming is refused (ArduCopter booting); ``max_items`` the largest mission accepted;
     ``request_int`` asks for upload items with MISSION_REQUEST_INT (PX4-like) instead of
     ArduCopter's MISSION_REQUEST; ``parameters`` replace ArduCopter's defaults at boot
-    (:class:`~.mock_params.ParameterStore`, ArduPilot's units).
+    (:class:`~.parameters.ParameterStore`, ArduPilot's units).
     """
 
     system_id: int = 1

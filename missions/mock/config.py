@@ -1,11 +1,12 @@
 """How a mock vehicle is configured: where it starts, its straight legs' kinematics, and how
-it departs from the ideal (:mod:`.mock_flight` says what each does)."""
+it departs from the ideal (:mod:`.kinematic_flight` says what each does)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from flycrane.errors import FieldProblem, InputError
+from missions.autopilots.ardupilot import MIN_GROUND_SPEED
 
 
 def _positive(owner: str, **values: float) -> None:
@@ -43,10 +44,11 @@ class Dynamics:
     climb_speed_mps: float = 2.5
     descent_speed_mps: float = 1.5
     land_speed_mps: float = 0.5
-    min_ground_speed_mps: float = 0.2  #: smaller DO_CHANGE_SPEED ground speeds are ignored
+    #: smaller DO_CHANGE_SPEED ground speeds are ignored (ArduCopter's floor)
+    min_ground_speed_mps: float = MIN_GROUND_SPEED
     #: how high its position reference stands above the ground it rests on [m], where
-    #: arming sets home: ArduCopter SITL's quad (its frame height; on SITL, SIM_STATE reads
-    #: 488.10 m on the ground of a vehicle started with --home at 488.0 m)
+    #: arming sets home: ArduCopter SITL's quad, its frame height (BENCHMARKS.md, "Home
+    #: height")
     rest_height_m: float = 0.1
 
     def __post_init__(self) -> None:

@@ -14,34 +14,27 @@ enough to check timing and geometry of multi-drone missions.
 - **Commands.** Altitudes are flown as ArduPilot stores them, in whole centimetres
   (:func:`~missions.geodesy.ardupilot_altitude`). NAV_TAKEOFF climbs vertically to the item
   altitude. NAV_SPLINE_WAYPOINT legs are flown as ArduCopter 4.5 flies them
-  (:mod:`.mock_spline`, with the model of :mod:`missions.autopilots.spline`), with the
-  vehicle's navigation parameters (:func:`~.mock_params.settings_from_parameters`:
+  (:mod:`.spline`, with the model of :mod:`missions.autopilots.spline`), with the
+  vehicle's navigation parameters (:func:`~.parameters.settings_from_parameters`:
   WPNAV_SPEED, _UP and _DN are the speed limits until a DO_CHANGE_SPEED changes them,
   WPNAV_ACCEL and _ACCEL_Z the accelerations, PSC_* and WPNAV_JERK the tracking); param1
   is a hold time [s] at the waypoint. The position and velocity reported are the modelled
   vehicle's, which lags its target as a copter does (a few centimetres, more in braking);
   after the legs it settles onto the target with the position controller's time constant
-  (1 / PSC_POSXY_P). NAV_WAYPOINT is the mock's own simpler leg, not
+  (1 / PSC_POSXY_P). NAV_WAYPOINT is the mock's own simpler leg (:mod:`.straight`), not
   ArduCopter's S-curve: the straight 3-D line to the item, with the along-track speed
   changing at most ``max_accel_mps2``, at :class:`Dynamics`' speeds until a DO_CHANGE_SPEED
   changes them; param1 is the hold time [s] at the waypoint. DO_CHANGE_SPEED sets a speed
-  limit (param2 [m/s]; param1 0/1 horizontal, 2 climb, 3 descent) from the next leg on
-  (do-commands between two nav items run when the leg to the second one starts, as
-  ArduPilot's AP_Mission runs them); a horizontal speed below ``min_ground_speed_mps`` is
-  ignored, as ArduCopter's AC_WPNav does (WPNAV_WP_SPEED_MIN, 20 cm/s up to Copter 4.5),
-  climb and descent speeds have no floor. NAV_DELAY waits param1 seconds, or with
-  param1 = -1 until the UTC time of day param2:param3:param4 (hour:minute:second, -1 to
-  ignore the hour or minute; ArduPilot's AP_RTC rule: the next such time, so a time just
-  past waits a day). The specification has a 1 s resolution (no fraction of a second can be
-  given); the release happens at the exact second. NAV_LOITER_UNLIM holds forever; NAV_LAND
-  descends at the land speed and disarms on touchdown.
-- **DO items before a spline leg**: only the first runs before the leg is set up (the speed
-  it may end with, from the next leg's entry limit); AP_Mission runs each further one a loop
-  tick later (:mod:`missions.autopilots.ardupilot`), when they change the leg's speed
-  limits but no longer its exit speed.
+  limit (param2 [m/s]) from the next leg on, by ArduCopter's rules
+  (:mod:`missions.autopilots.ardupilot`, "Speeds": the ground-speed floor,
+  ``min_ground_speed_mps`` here, and only the first DO item before a spline leg setting
+  the leg up). NAV_DELAY waits param1 seconds, or with param1 = -1 until a UTC time of day
+  (:func:`seconds_until_utc`); the specification has a 1 s resolution, and the release
+  happens at the exact second. NAV_LOITER_UNLIM holds forever; NAV_LAND descends at the
+  land speed and disarms on touchdown.
 - **Jumps.** :meth:`KinematicFlight.jump` (MISSION_SET_CURRENT during a flight) runs the
-  mission from the given item at once, DO items first, keeping the speed limits set so far
-  (ArduPilot's ``AP_Mission::set_current_cmd``); a spline leg after it starts from rest.
+  mission from the given item as ArduCopter does (:mod:`missions.autopilots.ardupilot`,
+  "Start"); a spline leg after it starts from rest.
 - **Imperfections** (:class:`Imperfections`): start delay (at every start or jump), a scale
   on every speed (spline legs: on their speed limits), a slow-down at straight waypoints
   (the speed through a waypoint drops by that fraction, 1 = stop, as ArduCopter decelerates
@@ -96,8 +89,8 @@ RELATIVE_ALT_FRAMES = frozenset({3, 6})
 
 #: Below this height [m] the vehicle counts as on the ground.
 GROUND_CLEARANCE_M = 0.05
-#: DO_CHANGE_SPEED speed types (param1) and the limit each sets; 0 (airspeed) is Copter's
-#: ground speed too.
+#: DO_CHANGE_SPEED speed types (param1) and the limit each sets
+#: (:mod:`missions.autopilots.ardupilot`, "Speeds").
 _SPEED_TYPES = {0: "horizontal", 1: "horizontal", 2: "up", 3: "down"}
 
 
@@ -278,7 +271,7 @@ class KinematicFlight:
         carry = yield  # the first step's duration: all of it is mission time
         carry = yield from self._hold(self.imperfections.start_delay_s, carry)
         # the limits a spline leg is set up with: those after the first DO item before it
-        # (ArduPilot runs the others one loop tick later, module docstring)
+        # (missions.autopilots.ardupilot, "Speeds")
         at_setup, first_do = dict(self._overrides), True
         for seq in range(first, len(items)):
             item = items[seq]
@@ -394,7 +387,7 @@ class KinematicFlight:
         at_setup: dict[str, float],
         carry: float,
     ) -> Phase:
-        """The spline leg to waypoint ``seq`` (:class:`~.mock_spline.SplineNavigator`)."""
+        """The spline leg to waypoint ``seq`` (:class:`~.spline.SplineNavigator`)."""
         destination = self.enu_from_item(items[seq], home_alt)
         following = after = None
         if items[seq].param1 <= 0:  # a hold at the waypoint makes it a stop

@@ -2,25 +2,19 @@
 
 Pure logic: :meth:`MissionServer.handle` takes a received message and returns the messages
 to send back, :meth:`MissionServer.tick` the ones due because time passed. The mock
-autopilot puts a socket around it. What it copies from ArduPilot's ``MissionItemProtocol``
-and ``AP_Mission`` (design.md section 9):
+autopilot puts a socket around it. It answers as ArduCopter does
+(:mod:`missions.autopilots.ardupilot`, "Mission protocol"; design.md section 9), and:
 
-- Upload: MISSION_COUNT truncates the stored mission to ``count`` and the vehicle asks for
-  every item with the deprecated MISSION_REQUEST (not _INT; ``request_int`` switches to
-  MISSION_REQUEST_INT, as PX4 and MAVSDK ask), re-asking after 1 s of silence
-  and giving up after 8 s with MAV_MISSION_OPERATION_CANCELLED. MISSION_ITEM_INT and
-  MISSION_ITEM are accepted. Items are written as they arrive, so an upload that fails
-  half-way leaves a half-written mission behind (the client must clear it).
-- An item other than the one requested gets MAV_MISSION_INVALID_SEQUENCE and the transfer
-  stays open (a duplicate is harmless). An item the vehicle cannot fly ends the transfer
-  with MAV_MISSION_UNSUPPORTED (command), _UNSUPPORTED_FRAME, _INVALID_PARAM5_X (latitude)
-  or _INVALID_PARAM6_Y (longitude).
-- While booting, MISSION_COUNT is answered with MAV_MISSION_NO_SPACE.
-- Download: MISSION_REQUEST_INT gets MISSION_ITEM_INT, MISSION_REQUEST gets MISSION_ITEM;
-  seq 0 always reads back as the current home (frame GLOBAL, altitude AMSL), whatever was
-  uploaded there; a DO command sent in frame MISSION reads back in frame GLOBAL
-  (:func:`~.messages.ardupilot_frame`); everything else as uploaded. A request during an
-  upload is DENIED.
+- Upload: MISSION_COUNT truncates the stored mission to ``count``; ``request_int`` asks
+  for the items with MISSION_REQUEST_INT instead, as PX4 and MAVSDK do; MISSION_ITEM_INT
+  and MISSION_ITEM are accepted. A stalled upload is cancelled with
+  MAV_MISSION_OPERATION_CANCELLED. An item the vehicle cannot fly ends the transfer with
+  MAV_MISSION_UNSUPPORTED (command), _UNSUPPORTED_FRAME, _INVALID_PARAM5_X (latitude) or
+  _INVALID_PARAM6_Y (longitude).
+- Download: MISSION_REQUEST_INT gets MISSION_ITEM_INT, MISSION_REQUEST gets MISSION_ITEM,
+  each item as ArduCopter reads it back (:func:`~missions.mavlink.messages.ardupilot_frame`;
+  seq 0 the current home, frame GLOBAL, altitude AMSL). A request during an upload is
+  DENIED.
 - Only the MISSION type is kept; fence and rally transfers are MAV_MISSION_UNSUPPORTED.
 """
 

@@ -2,16 +2,10 @@
 
 Pure logic, like :class:`~missions.mock.mission_server.MissionServer`:
 :meth:`ParameterStore.handle` takes a received message and returns the messages to send.
-What it copies from ArduPilot (``GCS_Param.cpp``, ``AP_Param::set_float``; measured on the
-4.5.7 SITL binary, ``docs/missions.md``):
-
-- PARAM_SET of a known name sets the value and answers PARAM_VALUE with the value now held,
-  its native type and ``param_index`` 65535; an integer parameter takes ``value + 0.01``
-  (``- 0.01`` below zero) truncated and clamped to its type's range; NaN and infinity are
-  ignored. PARAM_REQUEST_READ by name answers the same way, by index with that index.
-- **An unknown name gets no answer at all** (ArduPilot stays silent; the ground side times
-  out, :mod:`missions.mavlink.params`).
-- PARAM_REQUEST_LIST answers every parameter, by index.
+It answers as ArduCopter does (:mod:`missions.autopilots.ardupilot`, "Parameter protocol":
+the value held, in its native type, :func:`stored_value`; silence for an unknown name),
+with ``param_index`` 65535 for a request by name and the index for one by index;
+PARAM_REQUEST_LIST answers every parameter, by index.
 
 The store holds the parameters a plan's ``.parm`` sets (``ArduCopterSettings.parameters``)
 with ArduCopter 4.5.7's defaults, read from the binary (``docs/missions.md``);

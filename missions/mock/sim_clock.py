@@ -10,8 +10,8 @@ when
 
 A vehicle that may not begin its next step handles its I/O meanwhile, and each step is
 followed by a look at its socket. A loaded machine therefore slows simulated time down, for
-every vehicle alike, instead of starving message handling (the old catch-up loop stepped
-up to the present without reading its socket and stopped answering when it fell behind).
+every vehicle alike, instead of starving message handling (a loop that caught up to the
+present without reading its socket would stop answering when it fell behind).
 When the simulation lags the paced clock by more than ``max_lag_steps``, the pacing drops
 the debt: simulated time then runs late, but never sprints to catch up, because a sprint
 would stretch the wall-clock latency of a ground station's commands, in simulated time, by
@@ -92,10 +92,6 @@ class SimClock:
             if not self._done:
                 return self._paced(time.monotonic()) * self.step_s
             return self._frontier * self.step_s
-
-    def real_seconds(self, sim_seconds: float) -> float:
-        """Wall-clock duration of ``sim_seconds`` at full pace [s]."""
-        return sim_seconds / self.speedup
 
     def _run_to(self, step: int, timeout_s: float) -> None:
         """Let the vehicles finish ``step`` and no more; wait until they have."""

@@ -3,18 +3,12 @@ flies them.
 
 Nothing of the flight itself is re-derived here: the leg's curve, its speed law and the
 vehicle's lag are :mod:`missions.autopilots.spline`'s, the single model of what ArduPilot
-does. This module does what the vehicle does around a leg when a spline waypoint starts
-(``ModeAuto::do_spline_wp``, ``AC_WPNav::set_spline_destination`` and
-``set_spline_destination_next``, read in ArduPilot's source):
+does. This module does what the vehicle does around a leg when a spline waypoint starts,
+by the rules stated there ("Geometry") and in :mod:`missions.autopilots.ardupilot`
+("Around a spline leg", "Speeds"):
 
-- **Origin tangent**: the previous spline leg's destination tangent (as given, before
-  SplineCurve scales it to the chord) when the vehicle flies on through the waypoint;
-  zero when it starts from rest (after any other nav item, a stop, or a jump).
-- **Destination tangent**, from the next nav item (its location; a zero latitude and
-  longitude or altitude stand for this leg's): to a spline waypoint, the vector from this
-  leg's origin to it; to anything else, the vector from this leg's destination to it, so
-  the final hold at the last waypoint makes that waypoint a stop. A hold time at the
-  waypoint (param1 > 0) makes it a stop too.
+- **Tangents**: the origin tangent carried from the previous spline leg (zero from rest),
+  the destination tangent from the next nav item (:func:`destination_tangent`).
 - **Exit speed bound**: the next leg's entry limit (SplineCurve's origin speed max) computed
   now, with the limits in force now; 0 when the vehicle stops at the waypoint.
 - The leg is flown by :func:`~missions.autopilots.spline.fly_leg` from the speed and the
@@ -51,7 +45,8 @@ class NextWaypoint:
 def destination_tangent(
     origin: NDArray[np.float64], destination: NDArray[np.float64], following: NextWaypoint | None
 ) -> NDArray[np.float64]:
-    """The tangent a leg from ``origin`` to ``destination`` ends with (module docstring)."""
+    """The tangent a leg from ``origin`` to ``destination`` ends with
+    (:mod:`missions.autopilots.spline`, "Geometry"); zero for a stop (``following`` None)."""
     if following is None:
         return np.zeros(3)
     return following.position - (origin if following.spline else destination)

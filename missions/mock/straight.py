@@ -1,5 +1,5 @@
 """The mock's own straight legs (NAV_WAYPOINT, takeoff, landing): a speed profile with a
-bounded along-track acceleration, not ArduCopter's S-curve (:mod:`.mock_flight`)."""
+bounded along-track acceleration, not ArduCopter's S-curve (:mod:`.kinematic_flight`)."""
 
 from __future__ import annotations
 

@@ -77,9 +77,9 @@ class SitlFlightOptions:
     settle_s: float = 3.0  #: steady hover at the hold before the release
     settle_speed: float = 0.05  #: [m/s] "steady": every drone slower than this
     #: [m] "steady": and every drone's estimate this close to its hold. Slow alone is not
-    #: steady: after the take-off's 2.5 m/s climb ArduCopter closes the last centimetres of
-    #: height at about 0.5 cm/s, and drones released 3 s after they slowed started the
-    #: mission 2-5 cm below it (true positions, 2026-11-25)
+    #: steady: a take-off closes its last centimetres of height slowly
+    #: (:mod:`missions.autopilots.ardupilot`), and drones released merely slow start the
+    #: mission below their hold (BENCHMARKS.md, "Home height")
     settle_distance: float = 0.02
     end_margin_s: float = 3.0  #: recorded after the last drone reached its end
     #: extra delay of each drone's release [s]: a deliberately perturbed flight

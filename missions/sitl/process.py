@@ -68,12 +68,11 @@ class SitlInstance:
         return f"tcp:127.0.0.1:{BASE_PORT + 10 * self.index}"
 
 
-#: BARO_GND_TEMP that makes SITL's barometric heights right [deg C]. SITL makes pressure
-#: from the standard atmosphere, whose temperature is 15 C at sea level; with its default
-#: (a ground temperature guessed per instance from the simulated sensor, 25-31 C) heights
-#: read 4.6-7 % high, differently on each drone; with the standard temperature at the home
-#: altitude (11.8 C at 488 m) still 1.3 % low; with 15 C, within 2 cm (measured on the
-#: Rescue and Puzzle flights, BENCHMARKS.md).
+#: BARO_GND_TEMP that makes SITL's barometric heights right [deg C]: SITL makes pressure
+#: from the standard atmosphere, whose temperature is 15 C at sea level, while its default
+#: ground temperature is guessed per instance from the simulated sensor and reads heights
+#: a few per cent high, differently on each drone (BENCHMARKS.md, "Moved from code
+#: comments").
 SITL_BARO_GROUND_TEMPERATURE = 15.0
 
 
@@ -81,8 +80,8 @@ def defaults_file(settings: SitlSettings, directory: Path) -> Path:
     """The defaults SITL boots with: the configured file, plus calibrated barometers
     (:attr:`SitlSettings.calibrated_barometers`) and no artificial gyro drift
     (:attr:`SitlSettings.gyro_drift`). A defaults file is read before the barometers are
-    calibrated: the only time BARO_GND_TEMP may change (set on a running vehicle, it moved
-    the altitude estimate by 27 m)."""
+    calibrated: the only time BARO_GND_TEMP may change (:mod:`missions.autopilots.ardupilot`,
+    "Parameters")."""
     extra = []
     if settings.calibrated_barometers:
         extra.append(f"BARO_GND_TEMP {SITL_BARO_GROUND_TEMPERATURE}")

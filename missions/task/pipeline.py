@@ -41,7 +41,7 @@ Stage = Literal["planning", "generating"]
 #: The head of every exported ``.parm`` file.
 PARM_HEADER = """FlyCrane: parameters every drone of this mission must have (ArduCopter 4.5).
 Load them before the flight; the upload reads them back and reports any that differ.
-Never load BARO_GND_TEMP on a powered vehicle (SITL's altitude jumped by 27 m)."""
+Never change BARO_GND_TEMP on a powered vehicle: its altitude estimate jumps."""
 
 
 class _Failed(Exception):

@@ -14,14 +14,13 @@ motion ArduCopter will fly with them (design.md section 9, ``missions.autopilots
    between them is not), must pass the same checks as the straight legs did; where it fails
    worst, the leg is split at the dense sample there, and timing and check run again. A
    set-down is checked for its collisions only, its surfaces excepted.
-4. **Early legs** (a drone that should fly a level leg slower than ArduCopter's 20 cm/s
-   floor, mostly the time law's slow ramps): a waypoint next to one is dropped where the
-   check still passes.
+4. **Early legs** (a drone that should fly a level leg slower than ArduCopter's
+   ground-speed floor, :mod:`missions.autopilots.ardupilot`; mostly the time law's slow
+   ramps): a waypoint next to one is dropped where the check still passes.
 5. **Tracking**: the same measure on the modelled *vehicles*, which lag their targets
-   (ArduCopter gives spline legs no acceleration feed-forward), is reported, not enforced
+   (:mod:`missions.autopilots.spline`), is reported, not enforced
    (``max_tracking_deviation``): splitting legs does not shorten a lag, and the plan's
-   clearance (the position-error model) is what covers it. Puzzle seed 2: 9.3 cm of
-   platform displacement at most, Rescue seed 0: 5.7 cm (default options).
+   clearance (the position-error model) is what covers it.
 """
 
 from __future__ import annotations

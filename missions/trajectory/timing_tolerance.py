@@ -1,8 +1,8 @@
 """How much timing error between the drones a mission tolerates (design.md section 9).
 
 Timing, not geometry, is the weak link of waypoint missions for a cable-suspended load:
-ArduCopter SITL started three copters 0.3 s apart and stretched a 24 s track to 33 s. So for
-every mission set we compute, by bisection:
+three autopilots start apart and stretch their legs differently (design.md section 9). So
+for every mission set we compute, by bisection:
 
 - **start offset**: the largest delay ``dt`` such that, whichever one or two drones start
   ``dt`` late (all six cases), the configuration reconstructed from the three drones'

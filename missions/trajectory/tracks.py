@@ -115,9 +115,10 @@ def _largest(a: float, c: NDArray, g: NDArray, k: int, gap: float, length: float
 @numba.njit(cache=True, nogil=True)
 def _lower_speeds(g: NDArray, lengths: NDArray, v: NDArray, a: float, max_sweeps: int) -> None:
     """:func:`time_law`'s sweeps, lowering the segment speeds v (K-1,) in place. Compiled:
-    they visit one segment at a time, 70,000 root evaluations for the Rescue, 0.13 s on
-    Python floats and 5 ms here, in the same floating-point operations in the same order
-    (the Rescue's times are bit for bit those of the Python sweeps)."""
+    they visit one segment at a time, tens of thousands of root evaluations per track
+    (BENCHMARKS.md, "``flycrane plan`` end to end", "Fourth round"), in the same
+    floating-point operations in the same order as on Python floats, so the times are
+    bit for bit the same."""
     n = len(v)
     c, before = np.zeros(3), np.empty(n)
     for _ in range(max_sweeps):

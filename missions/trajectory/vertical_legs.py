@@ -7,14 +7,12 @@ the ground) is planned from or to the nearest raised pose that keeps the clearan
   rest in the final hold). Contact with the named surfaces during it is its intended end
   (the load rests on the roof), not a failure; contact with anything else is. The raised
   goal is ``set_down_approach`` above the lowest clear pose: the path's last leg brakes
-  there, and braking is where the drones err most (on SITL, three drones braking a
-  0.3 m/s descent onto the Rescue's roofs sank 3-4 cm below their targets and spread by as
-  much, and the platform, hanging at alphas near 1, sank 10 cm: the footbridge hit a roof
-  where the plan kept 7 cm).
+  there, and braking is where the drones err most, an error the hanging platform
+  amplifies (BENCHMARKS.md, "Home height", "The set-down approach").
 - **Lift-off**: the take-off climbs to the raised start with the load hanging below: it is
   the take-off that lifts the load from its surfaces, before the drones are released
-  together (design.md section 9: take-offs lift 0.27-0.41 s apart, so the lift happens
-  below the clearance, where the load was resting anyway).
+  together (take-offs do not lift together, :mod:`missions.autopilots.ardupilot`, so the
+  lift happens below the clearance, where the load was resting anyway).
 """
 
 from __future__ import annotations

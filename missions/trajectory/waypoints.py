@@ -61,11 +61,6 @@ class WaypointPlan:
     max_cable_length_error: float  #: over all check points [m]
     reason: str = ""
 
-    @property
-    def leg_speeds(self) -> NDArray[np.float64]:
-        """Constant speed of each drone on each leg (K-1, 3) [m/s]."""
-        return np.linalg.norm(np.diff(self.drones, axis=0), axis=-1) / np.diff(self.time)[:, None]
-
 
 def drone_positions_at(
     waypoint_time: NDArray, waypoint_drones: NDArray, t: NDArray

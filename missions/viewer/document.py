@@ -37,7 +37,7 @@ from missions.viewer.flown import FlownTrack, FlownTrackError, load_flown, recon
 VIEW_FORMAT = "flycrane.view/1"
 
 #: Decimals kept in the document: 1 micrometre, 1e-7 of a quaternion, 10 micronewtons.
-#: Far below anything a page can show, and they keep a 25 s Rescue under 0.5 MB.
+#: Far below anything a page can show, and they keep a document small.
 POSITION_DECIMALS, ROTATION_DECIMALS, FORCE_DECIMALS = 6, 7, 5
 
 

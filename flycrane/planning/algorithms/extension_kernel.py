@@ -21,8 +21,8 @@ times below what the endpoints keep and once above it. Why: eq. 8 multiplies twe
 tension factors against three thrust factors, and its least value at a strained pose (the
 Puzzle's tilted passage) lies at low alphas, where it buys slack the path cannot keep
 anyway (every path hovers at its endpoints, which bound its least margins) with thrust and
-headroom it can: on eq. 8 alone bitrrt's Puzzle paths kept 2.2 N of thrust margin where
-T-RRT's kept 3.2 N (BENCHMARKS.md, "Planner v2, the default").
+headroom it can: on eq. 8 alone bitrrt's paths kept less thrust margin than T-RRT's
+(BENCHMARKS.md, "Planner v2, the default").
 """
 
 from __future__ import annotations

@@ -9,9 +9,10 @@ visited lies more than k * cell away in position, so once the best distance foun
 most k * cell the answer is exact. Where the rings would visit more cells than the tree has
 nodes (a query far from a small tree), a brute-force scan is cheaper and is done instead.
 
-Brute force costs O(n) per query (30 us at 30,000 nodes, BENCHMARKS.md "Planner v2"), and
-a planner queries once or twice per expansion attempt; the grid keeps a query at a few
-microseconds where the tree is dense around the query, as it is for local samples.
+Brute force costs O(n) per query (tens of microseconds at tens of thousands of nodes:
+BENCHMARKS.md, "Moved from code comments"), and a planner queries once or twice per
+expansion attempt; the grid keeps a query at a few microseconds where the tree is dense
+around the query, as it is for local samples.
 """
 
 from __future__ import annotations

@@ -13,8 +13,8 @@ benchmark can compare against them.
   motion checks, one per OMPL iteration that reaches one.
 - Goal: as our planners, OMPL's stop on a node within ``goal_connection x step`` of the
   goal (our chordal distance) from which the straight motion to the exact goal is valid;
-  the path is completed by that motion. (A plain goal ball let OMPL stop on any node in
-  the ball, and on Rescue most such nodes cannot reach the goal, 5 cm above the roofs.)
+  the path is completed by that motion. (A plain goal ball lets OMPL stop on any node in
+  the ball, and on the Rescue most such nodes cannot reach the goal, 5 cm above the roofs.)
 - Objective (TRRT): ``MechanicalWorkOptimizationObjective`` with our cost as stateCost;
   TRRT starts at our initial temperature (1e-6 * c(q_start)) instead of OMPL's 100, which
   suits neither cost scale.

@@ -26,19 +26,15 @@ Choices where the paper is silent or scale-dependent:
 - The final edge into the goal skips the transition test (it still needs a valid motion
   and a cost below c_max). The goal's cost is fixed by the task, so every path climbs to it
   anyway; when the goal is costlier than its surroundings (the benchmark goals hover at
-  alpha = 1, ~5e9, next to ~1e9 valleys) the test refused that last climb while other
-  accepted climbs kept cooling T, and runs stalled for a minute with a node 0.7 from
-  the goal.
+  alpha = 1, ~5e9, next to ~1e9 valleys) the test refuses that last climb while other
+  accepted climbs keep cooling T, and the run stalls next to the goal.
 - Goal connection from within 2 delta of the goal (``goal_connection``; the paper does not
   say from how far). A goal can sit on a cost cliff: the Puzzle's hover at alpha = 1
-  costs 5.65e9, 1.1e10 at a tilt of 0.1 and is infeasible at 0.2, against ~7e8 for the
-  tilted low-alpha nodes the tree brings under the slab. From within one step, runs spent
-  much of their time with such nodes 0.8-1.0 from the goal, just outside delta = 0.77,
-  climbing the cliff one refused transition at a time; from within two steps the straight
-  motion to the goal is tried (and is valid) much sooner. Measured on the Puzzle's
-  1.6 x 1.0 m calibration (before its clearance), seeds 0-9 (BENCHMARKS.md, "Puzzle:
-  calibration and Table I"): median 19.0 s (max 34.3) with one step, 7.3 s (max 15.3)
-  with two.
+  costs 5.65e9 level and is infeasible at a tilt of 0.2, against ~7e8 for the tilted
+  low-alpha nodes the tree brings under the slab. From within one step, such nodes just
+  outside the step climb the cliff one refused transition at a time; from within two
+  steps the straight motion to the goal is tried (and is valid) much sooner
+  (BENCHMARKS.md, "Puzzle: calibration and Table I", "Calibration runs").
 """
 
 from __future__ import annotations
