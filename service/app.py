@@ -1,12 +1,13 @@
 """The FastAPI application: routers, error handlers, request limits, lifespan.
 
 ``create_app(settings, executor)`` builds one application; its lifespan locks the data
-directory, opens the database, starts the job manager (a local process pool unless an
-executor is given), resumes the tasks a previous run left queued or running, deletes
-finished tasks past their retention (at start and hourly), writes again the task outcomes
-the database refused (every few seconds, :meth:`JobManager.reconcile`), and at exit stops
-the pool, killing running jobs (their rows stay as they were, for the next start to
-resume).
+directory and opens the database, both checked (:mod:`service.startup`: a full disk, a
+corrupt or read-only database refuse the start in one line), starts the job manager (a
+local process pool unless an executor is given), resumes the tasks a previous run left
+queued or running, deletes finished tasks past their retention (at start and hourly),
+writes again the task outcomes the database refused (every few seconds,
+:meth:`JobManager.reconcile`), and at exit stops the pool, killing running jobs (their rows
+stay as they were, for the next start to resume).
 """
 
 from __future__ import annotations
@@ -26,12 +27,12 @@ from service.api.routes import docs, health, presets, statics, tasks, view
 from service.deps import READ, ServiceState
 from service.errors import error_responses, install_error_handlers
 from service.jobs import JobManager
-from service.lifecycle import RETENTION_INTERVAL, DataDirLock, purge_expired
+from service.lifecycle import RETENTION_INTERVAL, purge_expired
 from service.metrics import ServiceMetrics
 from service.middleware import BodySizeLimit, SecurityHeaders
-from service.migrate import upgrade_database
 from service.settings import Settings, get_settings
-from service.storage import TaskStore, make_engine
+from service.startup import open_storage
+from service.storage import TaskStore
 from service.uploads import UploadRunner
 
 logger = logging.getLogger(__name__)
@@ -67,11 +68,8 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        lock = DataDirLock(settings.data_dir).acquire()
-        settings.tasks_dir.mkdir(parents=True, exist_ok=True)
+        lock, engine = open_storage(settings)  # checked, migrated before any worker opens it
         url = settings.resolved_database_url
-        engine = make_engine(url, settings.database_busy_timeout)
-        upgrade_database(engine)  # before any worker opens it
         store = TaskStore(engine)
         metrics = ServiceMetrics(store)
 

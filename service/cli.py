@@ -27,9 +27,9 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     import uvicorn
 
     from service.app import create_app
-    from service.errors import DataDirLockedError
-    from service.lifecycle import DataDirLock
+    from service.errors import DataDirLockedError, StartupError
     from service.settings import Settings
+    from service.startup import open_storage
 
     overrides = {
         k: v for k, v in (("data_dir", args.data_dir), ("workers", args.workers)) if v is not None
@@ -49,11 +49,15 @@ def _cmd_serve(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    try:  # the lifespan takes it again; this only turns a second server into a clear message
-        DataDirLock(settings.data_dir).acquire().release()
-    except DataDirLockedError as error:
+    # The lifespan checks again; this turns a second server on the same directory, a full
+    # disk or an unusable database into one line instead of uvicorn's traceback.
+    try:
+        lock, engine = open_storage(settings)
+    except (DataDirLockedError, StartupError) as error:
         print(f"flycrane serve: {error}", file=sys.stderr)
         return 1
+    engine.dispose()
+    lock.release()
     uvicorn.run(
         create_app(settings),
         host=args.host,

@@ -14,11 +14,12 @@ from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel
-from sqlalchemy.exc import OperationalError
+from sqlalchemy.exc import OperationalError, SQLAlchemyError
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 
 from flycrane.errors import FieldProblem, FlyCraneError, InputError, readable_errors
 from flycrane.planning.validity import InvalidConfigurationError, InvalidReason
+from service.storage import database_reason
 
 
 class ServiceError(FlyCraneError):
@@ -98,6 +99,13 @@ class ArtifactUnreadableError(ServiceError):
 
 class DataDirLockedError(ServiceError):
     """Another server process holds the data directory (two would run each other's tasks)."""
+
+    status_code = 503
+
+
+class StartupError(ServiceError):
+    """The server cannot start on its storage: the data directory or the database is unusable
+    (one line naming the file and the reason; ``flycrane serve`` prints it and exits 1)."""
 
     status_code = 503
 
@@ -206,16 +214,12 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(OperationalError)
     @app.exception_handler(PoolTimeoutError)
-    async def _database_busy(_request: Request, error: Exception) -> JSONResponse:
+    async def _database_busy(_request: Request, error: SQLAlchemyError) -> JSONResponse:
         # SQLite's "database is locked" after the busy timeout, a PostgreSQL server gone:
         # the request was fine, the database could not take it now.
+        reason = database_reason(error)
         return JSONResponse(
-            {"detail": f"the database is busy or unreachable; retry later ({_first_line(error)})"},
+            {"detail": f"the database is busy or unreachable; retry later ({reason})"},
             status_code=503,
             headers={"Retry-After": str(DATABASE_RETRY_AFTER)},
         )
-
-
-def _first_line(error: Exception) -> str:
-    text = str(getattr(error, "orig", None) or error)
-    return text.splitlines()[0] if text else type(error).__name__

@@ -34,7 +34,7 @@ from sqlalchemy.exc import SQLAlchemyError
 from flycrane.execution import stop_executor
 from service.errors import ServiceBusyError
 from service.metrics import ServiceMetrics
-from service.storage import TaskRecord, TaskStatus, TaskStore, make_engine
+from service.storage import TaskRecord, TaskStatus, TaskStore, database_reason, make_engine
 
 logger = logging.getLogger(__name__)
 
@@ -114,12 +114,6 @@ def _finish(
         logger.error("task %s: outcome not recorded: %s", spec.task_id, database_reason(failure))
         return JobOutcome(status, result, error, written=False)
     return JobOutcome(final.status if final else status, result, error)
-
-
-def database_reason(failure: SQLAlchemyError) -> str:
-    """The database's own words, without SQLAlchemy's statement and parameters."""
-    text = str(getattr(failure, "orig", None) or failure)
-    return text.splitlines()[0] if text else type(failure).__name__
 
 
 def _run(spec: JobSpec, store: TaskStore, task_dir: Path) -> JobOutcome:

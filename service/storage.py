@@ -35,6 +35,7 @@ from sqlalchemy import (
     update,
 )
 from sqlalchemy.engine import Dialect, Engine
+from sqlalchemy.exc import SQLAlchemyError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column, sessionmaker
 from sqlalchemy.types import TypeDecorator
 
@@ -144,6 +145,13 @@ class TaskRecord:
             cancel_requested=row.cancel_requested,
             attempt=row.attempt,
         )
+
+
+def database_reason(failure: SQLAlchemyError) -> str:
+    """The database's own words (its driver's first line), without SQLAlchemy's statement,
+    parameters and link."""
+    text = str(getattr(failure, "orig", None) or failure)
+    return text.splitlines()[0] if text else type(failure).__name__
 
 
 def make_engine(url: str, busy_timeout: float = 30.0) -> Engine:
