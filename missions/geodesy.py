@@ -72,3 +72,15 @@ def mission_altitude(altitude: ArrayLike) -> NDArray[np.float64]:
     """
     centimetres = np.round(np.asarray(altitude, dtype=float) * 100.0)
     return (centimetres + np.copysign(0.5, centimetres)) / 100.0
+
+
+def ned_from_enu(enu: ArrayLike) -> NDArray[np.float64]:
+    """Vectors or positions (..., 3) from east, north, up to north, east, down axes."""
+    enu = np.asarray(enu, dtype=float)
+    return np.stack([enu[..., 1], enu[..., 0], -enu[..., 2]], axis=-1)
+
+
+def enu_from_ned(ned: ArrayLike) -> NDArray[np.float64]:
+    """Inverse of :func:`ned_from_enu`."""
+    ned = np.asarray(ned, dtype=float)
+    return np.stack([ned[..., 1], ned[..., 0], -ned[..., 2]], axis=-1)

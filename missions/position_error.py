@@ -10,6 +10,13 @@ kinds:
 - **relative**: how far the drones may be off *from each other* (independent estimate and
   tracking errors): the load shifts and turns, by about as much at the platform.
 
+Each model also names the positioning it holds with (``height_source``, ``min_fix_type``):
+the exported ``.parm`` sets the height source (:func:`missions.autopilots.ardupilot.
+team_parameters`) and the release is refused when a vehicle reports otherwise
+(:mod:`missions.execution.readiness`). A barometer's height drifts by decimetres within a
+flight (SITL's uncalibrated ones read 4-5 % of the height high), more than any of the
+centimetre bounds below.
+
 The obstacle clearance is ``max(common) + max(relative)``: the load's worst displacement
 when the common error and the relative one point the same way. Payload points far from the
 platform move more when the platform turns; the flight report measures the clearance a
@@ -17,19 +24,23 @@ flight kept, which is how the presets below were checked.
 
 Presets (:data:`PRESETS`):
 
-- ``sitl``: ArduCopter 4.5.7 SITL with the barometers calibrated at boot: the bounds its
-  Rescue and Puzzle flights kept, estimate against truth and between the drones
-  (BENCHMARKS.md, "Moved from code comments");
+- ``sitl``: ArduCopter 4.5.7 SITL with GNSS height: the bounds its Rescue and Puzzle
+  flights kept, estimate against truth and between the drones (BENCHMARKS.md, "Moved from
+  code comments"); GNSS height, a 3-D fix;
 - ``rtk``: an RTK GNSS fix (receiver specifications: about 1-2 cm horizontal, 2-3 cm
   vertical) plus a copter's tracking of a slow path, a few centimetres: a stated
-  assumption, not measured here;
+  assumption, not measured here; GNSS height, an RTK fixed solution (fix type 6);
 - ``gnss``: plain GNSS and barometer: metres (receiver specifications and ArduPilot's
   documentation on barometer drift): a stated assumption; no scene of ours can be planned
-  with it, which is the point: a cable-suspended load near obstacles needs RTK;
-- ``exact``: no error (for simulations that track perfectly, e.g. tests of the planner).
+  with it, which is the point: a cable-suspended load near obstacles needs RTK; any
+  height source, a 3-D fix;
+- ``exact``: no error (for simulations that track perfectly, e.g. tests of the planner);
+  no positioning named.
 """
 
 from __future__ import annotations
+
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -43,6 +54,12 @@ class PositionErrorModel(BaseModel):
     common_vertical: float = Field(ge=0, le=100, description="[m] shared by all drones")
     relative_horizontal: float = Field(ge=0, le=100, description="[m] between two drones")
     relative_vertical: float = Field(ge=0, le=100, description="[m] between two drones")
+    height_source: Literal["gnss", "barometer", "any"] = Field(
+        "gnss", description="where each drone's height must come from (EK3_SRC1_POSZ)"
+    )
+    min_fix_type: int = Field(
+        3, ge=0, le=6, strict=True, description="least GNSS fix (GPS_RAW_INT fix_type)"
+    )
 
     @property
     def obstacle_clearance(self) -> float:
@@ -54,19 +71,19 @@ class PositionErrorModel(BaseModel):
 PRESETS: dict[str, PositionErrorModel] = {
     "sitl": PositionErrorModel(
         common_horizontal=0.04, common_vertical=0.04, relative_horizontal=0.03,
-        relative_vertical=0.02,
+        relative_vertical=0.02, height_source="gnss", min_fix_type=3,
     ),
     "rtk": PositionErrorModel(
         common_horizontal=0.03, common_vertical=0.05, relative_horizontal=0.02,
-        relative_vertical=0.03,
+        relative_vertical=0.03, height_source="gnss", min_fix_type=6,
     ),
     "gnss": PositionErrorModel(
         common_horizontal=1.5, common_vertical=3.0, relative_horizontal=0.5,
-        relative_vertical=0.5,
+        relative_vertical=0.5, height_source="any", min_fix_type=3,
     ),
     "exact": PositionErrorModel(
         common_horizontal=0.0, common_vertical=0.0, relative_horizontal=0.0,
-        relative_vertical=0.0,
+        relative_vertical=0.0, height_source="any", min_fix_type=0,
     ),
 }  # fmt: skip
 

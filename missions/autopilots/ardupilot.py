@@ -62,6 +62,25 @@ from missions.autopilots.spline import AccelLimits, SpeedLimits, Tracking
 #: ArduCopter ignores DO_CHANGE_SPEED ground speeds below this (AC_WPNav's
 #: WPNAV_WP_SPEED_MIN, 20 cm/s in Copter 4.5) [m/s].
 MIN_GROUND_SPEED = 0.20
+#: ArduCopter's flight modes (HEARTBEAT custom_mode) that executions command or watch for.
+COPTER_MODES = {
+    "STABILIZE": 0,
+    "ALT_HOLD": 2,
+    "AUTO": 3,
+    "GUIDED": 4,
+    "LOITER": 5,
+    "RTL": 6,
+    "LAND": 9,
+    "BRAKE": 17,
+}
+#: The EKF's height source (EK3_SRC1_POSZ) and its value for each source a position-error
+#: model may name (:mod:`missions.position_error`); ArduCopter's default is the barometer.
+HEIGHT_SOURCE_PARAMETER = "EK3_SRC1_POSZ"
+HEIGHT_SOURCES = {"barometer": 1, "gnss": 3}
+#: GUID_TIMEOUT [s]: a GUIDED (or NAV_SCRIPT_TIME) vehicle without a new target for this
+#: long zeroes its target's velocity and acceleration and holds; until then it moves the
+#: target on with the last ones (default 3 s: 1.5 m at 0.5 m/s).
+TARGET_TIMEOUT = 0.5
 #: WPNAV_ACCEL and WPNAV_ACCEL_Z bounds (ArduCopter's parameter ranges) [m/s^2].
 ACCEL_RANGE = (0.5, 5.0)
 #: The order of the DO_CHANGE_SPEED items before a leg (``missions.export.builder``): ground,
@@ -176,3 +195,23 @@ class ArduCopterSettings:
             "PSC_VELZ_P": "the same vertically",
             "WP_YAW_BEHAVIOR": "0: keep the heading; the default yaws at every corner",
         }
+
+
+def team_parameters(height_source: str) -> tuple[dict[str, float], dict[str, str]]:
+    """The parameters a drone of a team needs beyond its navigation (:class:`
+    ArduCopterSettings`), and why: the position-error model's height source (none for
+    ``any``), a short target timeout, and no lost-link failsafe of its own."""
+    values: dict[str, float] = {"GUID_TIMEOUT": TARGET_TIMEOUT, "FS_GCS_ENABLE": 0.0}
+    reasons = {
+        "GUID_TIMEOUT": "a drone that hears no target for this long stops and holds (s): its "
+        "last velocity would carry it away from the team",
+        "FS_GCS_ENABLE": "0: a lost link must not make one drone act alone; the ground stops "
+        "the team, or the onboard player keeps the clock",
+    }
+    if height_source in HEIGHT_SOURCES:
+        values[HEIGHT_SOURCE_PARAMETER] = float(HEIGHT_SOURCES[height_source])
+        reasons[HEIGHT_SOURCE_PARAMETER] = (
+            f"{HEIGHT_SOURCES[height_source]}: {height_source} height, the position-error "
+            "model's (the plan's clearance rests on it)"
+        )
+    return values, reasons

@@ -33,6 +33,7 @@ class MavCmd(IntEnum):
     NAV_DELAY = 93
     DO_CHANGE_SPEED = 178
     MISSION_START = 300
+    NAV_SCRIPT_TIME = 42702
 
 
 class MissionType(IntEnum):

@@ -20,14 +20,20 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from missions.execution.executor import ExecutionRecord
 from missions.export.formats import dumps
-from missions.flight_report.alignment import releases_from_logs, releases_from_sends
+from missions.flight_report.alignment import (
+    AlignmentError,
+    releases_from_logs,
+    releases_on_common_clock,
+)
 from missions.flight_report.flight_mcap import write_flight_mcap
 from missions.flight_report.planned_flight import PlannedFlight
 from missions.flight_report.plot import plot_flight_report
-from missions.flight_report.record import FlightRecord
+from missions.flight_report.record import EXECUTION_FILE, FlightRecord
 from missions.flight_report.report import FlightReport, flight_report
 from missions.flight_report.vehicle_log import read_vehicle_log
+from missions.task.directory import TaskDirectory
 
 #: What write_report saves, and the viewer's flown-path file.
 REPORT_FILE, PLOT_FILE, FLOWN_FILE = "report.json", "report.png", "flown.json"
@@ -35,14 +41,45 @@ MCAP_FILE = "flight.mcap"
 
 
 def report_sitl_flight(flight_dir: Path) -> tuple[FlightReport, PlannedFlight]:
-    """The report of a SITL flight: releases timed by the harness's sends."""
+    """The report of a SITL flight, on the simulators' common clock: from the first
+    release (``missions``), or from the executor's plan start (``stream``, ``onboard``),
+    whose clock also times the plan the drones were given.
+
+    Raises
+    ------
+    InputError, TaskDirectoryError, AlignmentError
+        A file the report needs is missing or unreadable.
+    """
     flight = FlightRecord.read(flight_dir)
     plan = PlannedFlight.read(Path(flight.task_dir))
     origin = plan.task.mission.origin
-    vehicles = [read_vehicle_log(flight_dir / v.tlog, v.name, origin) for v in flight.vehicles]
-    sent = [v.release_sent_s for v in flight.vehicles]
-    releases = releases_from_sends(vehicles, flight.release_seq, sent)
-    return flight_report(plan, vehicles, releases, flight.parameter_differences), plan
+    height = plan.task.mission.home_height
+    vehicles = [
+        read_vehicle_log(flight_dir / v.tlog, v.name, origin, height) for v in flight.vehicles
+    ]
+    record = ExecutionRecord.read(flight_dir / EXECUTION_FILE)
+    if flight.mode == "missions":
+        releases = releases_on_common_clock(vehicles, release_seq=flight.release_seq)
+        first = vehicles[0]
+        start = releases.vehicle_time[0] + (first.clock_offset or 0.0) - releases.common_time[0]
+    else:
+        releases = releases_on_common_clock(vehicles, start=record.start)
+        start = record.start
+        last = min(
+            releases.mission_time(k, v.estimated.time[-1:])[0] for k, v in enumerate(vehicles)
+        )
+        trajectory = TaskDirectory(Path(flight.task_dir)).trajectory()
+        plan = plan.executed(trajectory, record.clock(), flight.mode, float(last))
+    stop = None
+    if record.commanded_stop_at is not None:
+        struck = [f["time"] for f in flight.faults if f["kind"] not in ("late", "operator")]
+        stop = (record.commanded_stop_at - start, min(struck) - start if struck else None)
+    # after a retreat the whole flight is judged; after a stop and a hold, through the hold
+    retreated = any(f.get("action") == "retreat" for f in flight.faults)
+    report = flight_report(
+        plan, vehicles, releases, flight.parameter_differences, stop, judge_all=retreated
+    )
+    return report, plan
 
 
 def report_tlogs(task_dir: Path, tlogs: Sequence[Path]) -> tuple[FlightReport, PlannedFlight]:
@@ -50,8 +87,14 @@ def report_tlogs(task_dir: Path, tlogs: Sequence[Path]) -> tuple[FlightReport, P
     releases from the logs alone."""
     plan = PlannedFlight.read(task_dir)
     origin = plan.task.mission.origin
-    vehicles = [read_vehicle_log(path, f"drone{k + 1}", origin) for k, path in enumerate(tlogs)]
-    releases = releases_from_logs(vehicles, plan.release.release_seq)
+    height = plan.task.mission.home_height
+    vehicles = [
+        read_vehicle_log(path, f"drone{k + 1}", origin, height) for k, path in enumerate(tlogs)
+    ]
+    try:
+        releases = releases_on_common_clock(vehicles, release_seq=plan.release.release_seq)
+    except AlignmentError:  # no SYSTEM_TIME in the logs
+        releases = releases_from_logs(vehicles, plan.release.release_seq)
     return flight_report(plan, vehicles, releases), plan
 
 

@@ -1,30 +1,21 @@
-"""One time base for three drones whose clocks are their own.
+"""One time base for three drones whose logs are timed by their own clocks.
 
-Each drone's log is timed by its own clock (``time_boot_ms``): right for its own motion,
-but the three clocks start at different instants (and three simulators may even run at
-slightly different paces). The drones are coupled by the load in real time, so the flight
-is judged on *mission time*: zero at the first drone's release, each drone's samples
-placed by
+Each drone's log is timed by its own clock (``time_boot_ms``), which started when it
+booted. The drones are coupled by the load in real time, so the flight is judged on
+*mission time*, one clock for the three, placed on each drone's samples by
 
     mission_time = release_k + (vehicle_time - vehicle_release_k)
 
-where ``vehicle_release_k`` is drone k's release on its own clock and ``release_k`` its
-release on the common clock, relative to the first. From the release on, each drone's own
-clock measures its flight (no drift between simulators, no network delay in the samples).
+where ``vehicle_release_k`` is drone k's release (or the plan's start) on its own clock and
+``release_k`` the same on the common clock, relative to mission time 0. Two ways to know it:
 
-A drone's release on its own clock is the first MISSION_CURRENT naming the released item
-(to half a stream period, :mod:`.vehicle_log`). On the common clock it is
-
-- **the ground's send** of its MISSION_SET_CURRENT (our SITL harness knows it): on loopback
-  a message reaches the vehicle within microseconds, and a simulator handles it at its next
-  loop (0.25 ms of wall time at x10);
-- **its receipt**, from the logs alone (any flight recorded by one ground station): the log
-  record of that MISSION_CURRENT. This includes the link's delays, which on a busy ground
-  station can reach tens of milliseconds.
-
-The receipt times are not precise enough to map a drone's clock onto the ground's (a
-simulated second lasts a tenth of a wall second, in which a busy reader thread drifts by
-tens of milliseconds), which is why each drone's own clock is used from its release on.
+- **the common clock** (:func:`releases_on_common_clock`): SYSTEM_TIME pairs each drone's
+  boot time with UNIX time, which GPS gives a real vehicle and one ``--start-time`` gives
+  the SITL simulators. Every sample then sits on one clock, so being in step is measured
+  as it happens: a late release, or a drone that falls behind, shows;
+- **the releases in the logs** (:func:`releases_from_logs`), for logs without SYSTEM_TIME:
+  each drone's first MISSION_CURRENT naming the released item, on its own clock and as the
+  ground station received it (which includes the link's delays).
 """
 
 from __future__ import annotations
@@ -76,10 +67,33 @@ def releases_from_logs(vehicles: Sequence[VehicleLog], release_seq: int) -> Rele
     return Releases(events[:, 0], events[:, 1] - first, first)
 
 
-def releases_from_sends(
-    vehicles: Sequence[VehicleLog], release_seq: int, sent_log_time: Sequence[float]
+def releases_on_common_clock(
+    vehicles: Sequence[VehicleLog], release_seq: int | None = None, start: float | None = None
 ) -> Releases:
-    """Releases with the ground's send times on the log clock (module docstring)."""
-    vehicle_time = [_released(v, release_seq)[0] for v in vehicles]
-    sent = np.asarray(sent_log_time, dtype=float)
-    return Releases(np.array(vehicle_time), sent - sent.min(), float(sent.min()))
+    """Every drone on the vehicles' one common clock (their SYSTEM_TIME): mission time 0 at
+    common time ``start`` (a stream or onboard execution's plan start), or at the first
+    drone's release into ``release_seq`` (missions).
+
+    Raises
+    ------
+    AlignmentError
+        A log without SYSTEM_TIME, or neither a start nor a release to align on.
+    """
+    offsets = []
+    for vehicle in vehicles:
+        if vehicle.clock_offset is None:
+            raise AlignmentError(f"{vehicle.name}: no SYSTEM_TIME with a UNIX time in the log")
+        offsets.append(vehicle.clock_offset)
+    offset = np.array(offsets)
+    if release_seq is not None:
+        vehicle_time = np.array([_released(v, release_seq)[0] for v in vehicles])
+        common = vehicle_time + offset
+        start = float(common.min())
+    elif start is not None:
+        vehicle_time = start - offset
+        common = np.full(len(vehicles), start)
+    else:
+        raise AlignmentError("nothing to align the drones on: no start, no release")
+    first = vehicles[0].estimated
+    log_time = float(np.interp(vehicle_time[0], first.time, first.log_time))
+    return Releases(vehicle_time, common - start, log_time)

@@ -6,7 +6,7 @@ configurations on the same time."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -16,9 +16,11 @@ from flycrane.model.kinematics import drone_positions_from_configuration
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import ValidityChecker
 from flycrane.world.scene import SceneSpec
+from missions.execution.group_clock import GroupClock
 from missions.task.directory import Release, TaskDirectory
 from missions.task.spec import TaskSpec
-from missions.trajectory.motion import DroneMotion
+from missions.trajectory.drone_trajectory import DroneTrajectory
+from missions.trajectory.motion import MOTION_STEP_S, DroneMotion, forward_progress
 from missions.trajectory.tracks import Track
 from missions.trajectory.waypoints import planned_configurations
 
@@ -55,11 +57,45 @@ class PlannedFlight:
     release: Release
     end_seq: tuple[int, int, int]  #: each drone's last item: the hold after the last leg
     contact_windows: tuple[ContactWindow, ...] = ()
+    #: the executor that flew it (:mod:`missions.execution`); for ``stream`` and ``onboard``
+    #: :attr:`motion` is the trajectory as the group clock played it (:meth:`executed`)
+    mode: str = "missions"
+    nominal_duration: float | None = None  #: the plan's own, at full rate [s]
+
+    @property
+    def reversible(self) -> bool:
+        """Whether the flight may go back along its path (an executor's retreat)."""
+        return self.mode != "missions"
 
     @property
     def duration(self) -> float:
         """Release to the end of the last leg (a set-down, if any) [s]."""
         return self.motion.duration
+
+    def executed(
+        self, trajectory: DroneTrajectory, clock: GroupClock, mode: str, end: float
+    ) -> PlannedFlight:
+        """The plan as an execution played it: ``trajectory`` at the group ``clock``'s plan
+        time, on mission time from the clock's start to ``end`` [s]; the dense plan's
+        configurations follow the drones (nearest dense sample, searched forward)."""
+        t = np.arange(0.0, end + MOTION_STEP_S / 2, MOTION_STEP_S)
+        tau = np.array([clock.tau(clock.start + x) for x in t])
+        drones = trajectory.in_task_frame(trajectory.at(tau)[0])
+        index = forward_progress(
+            self.track.drones.reshape(-1, 9), drones.reshape(-1, 9), backward=True
+        )
+        windows = self.contact_windows
+        if trajectory.set_down_start is not None and (tau >= trajectory.set_down_start).any():
+            start = float(t[np.argmax(tau >= trajectory.set_down_start)])
+            windows = tuple(replace(w, start=start) for w in windows)
+        return replace(
+            self,
+            track=Track(t, self.track.q[index], drones),
+            motion=DroneMotion(t, drones, np.array([0.0, float(t[-1])])),
+            mode=mode,
+            nominal_duration=trajectory.duration,
+            contact_windows=windows,
+        )
 
     def real_validity(self, surfaces: tuple[str, ...] = ()) -> ValidityChecker:
         """The task's validity on the real obstacles (no planning clearance), without the

@@ -12,6 +12,8 @@ from typing import Any
 from flycrane.errors import FieldProblem, InputError
 
 FLIGHT_FILE = "flight.json"
+#: An executor's record beside it (:class:`missions.execution.executor.ExecutionRecord`).
+EXECUTION_FILE = "execution.json"
 
 
 @dataclass(frozen=True)
@@ -40,6 +42,9 @@ class FlightRecord:
     parameters: dict[str, dict[str, float]]  #: what was set, per vehicle
     release_delays: tuple[float, ...]
     parameter_differences: tuple[str, ...]  #: read back unlike the plan's .parm
+    mode: str = "missions"  #: who flew the plan (:mod:`missions.execution`)
+    refused: tuple[str, ...] = ()  #: why the release was refused (none: released)
+    faults: tuple[dict[str, Any], ...] = ()  #: injected: kind, drone, plan time, common time
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -72,6 +77,9 @@ class FlightRecord:
                 parameters=dict(data["parameters"]),
                 release_delays=tuple(float(d) for d in data["release_delays"]),
                 parameter_differences=tuple(data["parameter_differences"]),
+                mode=str(data.get("mode", "missions")),
+                refused=tuple(data.get("refused", ())),
+                faults=tuple(data.get("faults", ())),
             )
         except (OSError, ValueError, KeyError, TypeError) as error:
             raise InputError([FieldProblem("flight", f"{path}: {error}")]) from None

@@ -7,12 +7,15 @@ autopilot's target as a copter does):
 
 - **timing**: the flown duration (the last drone's arrival within
   :data:`ARRIVAL_TOLERANCE_M` of its last waypoint) against the plan's; the release spread;
-  each drone's *progress* (the plan time of the nearest point of its own modelled path,
-  searched forward) and how far apart the drones are in progress;
+  each drone's *progress*: the plan time of where it is, from its displacement along its
+  modelled velocity at the same mission time (defined where the model moves at least
+  :data:`MOVING_SPEED`), and how far apart the drones are in it;
 - **geometry**: each drone's distance from its modelled position at the same mission time
   and from its modelled path (at its own progress); the error of the three inter-drone
   distances against the plan at the formation's progress (the plan time whose three drone
-  positions are nearest the flown ones), which a delay common to all three leaves alone;
+  positions are nearest the flown ones), which a delay common to all three leaves alone,
+  and the same at one common time (the drones' own clocks, SYSTEM_TIME: the measure of
+  being in step);
 - **the load**: the configuration reconstructed from the three drones (direct kinematics,
   started from the plan at the formation's progress), its statics (least slack, overload
   and thrust margins, highest cost) and its collisions with the *real* obstacles (no
@@ -37,6 +40,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -64,6 +68,12 @@ MOVING_SPEED = 0.2
 REST_SPEED = 0.02
 #: After the last arrival, this much of the hold is judged too [s].
 END_MARGIN_S = 1.0
+#: The start is read from this much of the first motion [s], shifted by up to
+#: :data:`START_SEARCH_S` [s].
+START_WINDOW_S, START_SEARCH_S = 3.0, 0.5
+#: A drone is at rest when it moves less than this [m/s] over :data:`STOP_WINDOW_S` [s]
+#: (SIM_STATE's positions come in centimetre steps: a shorter window is noise).
+STOPPED_SPEED, STOP_WINDOW_S = 0.1, 0.5
 
 
 @dataclass(frozen=True)
@@ -79,6 +89,10 @@ class SourceFigures:
     error_off_path_max: tuple[float, float, float]
     inter_drone_error_p95: float
     inter_drone_error_max: float
+    #: the three distances' error against the plan's at the same mission time, the worst
+    #: pair per sample (p95, max): the drones in step on one clock
+    pair_error_common_p95: float
+    pair_error_common_max: float
     #: where the whole formation sat against the plan while the model has it at rest (the
     #: hold at the release, stops, the final hold): the median of the three drones' mean
     #: displacement, ENU, over those samples (NaN without any). A frame error common to the
@@ -111,9 +125,22 @@ class Verdict:
 
 
 @dataclass(frozen=True)
+class TeamStop:
+    """How a team stop went (:mod:`missions.execution.team`), on mission time [s]."""
+
+    detected_after: float | None  #: from the fault to the stop command (None: not injected)
+    commanded_at: float
+    #: per drone, from the command until it came to rest (its speed over
+    #: :data:`STOP_WINDOW_S` below :data:`STOPPED_SPEED`); inf: it never did
+    at_rest_after: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
 class FlightReport:
     """What a flight did against its plan; :meth:`as_dict` is the JSON."""
 
+    mode: str  #: who flew it: missions, stream or onboard (:mod:`missions.execution`)
+    stop: TeamStop | None  #: a team stop, if one went out
     planned_duration: float
     release_spread: float
     start_offset_tolerance: float  #: what the plan claimed
@@ -147,6 +174,9 @@ class Timing:
     arrival: tuple[float, float, float]  #: per drone
     progress_spread_max: float  #: drones apart in progress along the plan
     progress_spread_p95: float
+    #: how far apart the drones started [s]: each drone's first motion from where it held,
+    #: against its modelled drone's (:func:`_start_delays`)
+    start_spread: float
 
 
 def _arrivals(
@@ -179,29 +209,75 @@ def _flown(
     )
 
 
-def _timing(
+def _progress(
+    plan: PlannedFlight, flown: NDArray[np.float64], t: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Each drone's progress (N, 3): mission time minus its lag along its modelled velocity
+    at the same mission time; NaN where the model moves slower than :data:`MOVING_SPEED`
+    (a hovering drone is equally near every instant of its hover)."""
+    step = PROGRESS_STEP_S
+    modelled = plan.drones_at(t)
+    velocity = (plan.drones_at(t + step / 2) - plan.drones_at(t - step / 2)) / step
+    speed2 = np.einsum("nka,nka->nk", velocity, velocity)
+    along = np.einsum("nka,nka->nk", flown - modelled, velocity)
+    moving = speed2 >= MOVING_SPEED**2
+    lag = np.divide(along, speed2, out=np.zeros_like(along), where=moving)
+    return np.where(moving, t[:, None] + lag, np.nan)
+
+
+def _start_delays(
     plan: PlannedFlight, vehicles: Sequence[VehicleLog], releases: Releases
+) -> NDArray[np.float64]:
+    """Each drone's start against its modelled drone's [s]: the shift of mission time that
+    best lays its first :data:`START_WINDOW_S` of motion (from its own hold: a steady offset
+    is not a delay) over the model's, least squares on the log's full rate; a start from
+    rest is slow, so a shift read from one threshold crossing would be the estimate's noise
+    over a few millimetres per second."""
+    shifts = np.arange(-START_SEARCH_S, START_SEARCH_S + 1e-9, 0.002)
+    delays = np.full(len(vehicles), np.nan)
+    for k, vehicle in enumerate(vehicles):
+        series = vehicle.estimated
+        flown_t = releases.mission_time(k, series.time)
+        before = (flown_t > -1.0) & (flown_t <= 0.0)
+        window = (flown_t > 0.0) & (flown_t <= START_WINDOW_S)
+        if not before.any() or not window.any():
+            continue
+        flown = series.enu[window] - series.enu[before].mean(axis=0)
+        modelled = plan.drones_at(np.zeros(1))[0, k]
+        costs = [
+            float(np.sum((flown - (plan.drones_at(flown_t[window] - s)[:, k] - modelled)) ** 2))
+            for s in shifts
+        ]
+        delays[k] = float(shifts[int(np.argmin(costs))])
+    return delays
+
+
+def _timing(
+    plan: PlannedFlight,
+    vehicles: Sequence[VehicleLog],
+    releases: Releases,
+    judge_until: float | None = None,
 ) -> tuple[Timing, NDArray[np.float64], NDArray[np.float64]]:
-    """Timing, the report's mission times and each drone's progress there (N, 3)."""
+    """Timing, the report's mission times and each drone's progress there (N, 3); samples
+    end at ``judge_until`` when given (a stopped flight), else after the last arrival."""
     tracks = [v.estimated for v in vehicles]
     arrival = _arrivals(plan, vehicles, releases)
     last = max(arrival)
     horizon = (last if np.isfinite(last) else plan.duration * 2.0) + END_MARGIN_S
+    if judge_until is not None:
+        horizon = judge_until
     t = np.arange(0.0, horizon, 1.0 / REPORT_RATE_HZ)
     flown = _flown(tracks, releases, t)
-    plan_t, plan_drones = plan.progress_samples()
-    moving = np.linalg.norm(np.gradient(plan_drones, PROGRESS_STEP_S, axis=0), axis=-1)
-    progress = np.full((len(t), 3), np.nan)
-    for k in range(3):
-        index = forward_progress(plan_drones[:, k], flown[:, k])
-        progress[:, k] = np.where(moving[index, k] >= MOVING_SPEED, plan_t[index], np.nan)
+    progress = _progress(plan, flown, t)
     defined = np.isfinite(progress).sum(axis=1) >= 2  # two drones moving: a spread
     spread = np.nanmax(progress[defined], axis=1) - np.nanmin(progress[defined], axis=1)
+    start = _start_delays(plan, vehicles, releases)
     timing = Timing(
         flown_duration=last,
         arrival=(arrival[0], arrival[1], arrival[2]),
         progress_spread_max=float(spread.max(initial=0.0)),
         progress_spread_p95=_p95(spread),
+        start_spread=float(np.nanmax(start) - np.nanmin(start)),
     )
     return timing, t, progress
 
@@ -240,20 +316,22 @@ def _source_figures(
     plan_t, plan_drones = plan.progress_samples()
     flown = _flown(tracks, releases, t)
     modelled = plan.drones_at(t)
+    back = partial(forward_progress, backward=plan.reversible)
     displacement = flown - modelled  # (N, 3 drones, 3)
     in_time = np.linalg.norm(displacement, axis=-1)  # (N, 3)
     off_path = np.stack(
         [
             np.linalg.norm(
-                plan_drones[forward_progress(plan_drones[:, k], flown[:, k]), k] - flown[:, k],
+                plan_drones[back(plan_drones[:, k], flown[:, k]), k] - flown[:, k],
                 axis=-1,
             )
             for k in range(3)
         ],
         axis=1,
     )
-    formation = forward_progress(plan_drones.reshape(len(plan_t), 9), flown.reshape(-1, 9))
+    formation = back(plan_drones.reshape(len(plan_t), 9), flown.reshape(-1, 9))
     inter = np.abs(_pairwise(flown) - _pairwise(plan_drones[formation])).max(axis=1)
+    common = np.abs(_pairwise(flown) - _pairwise(modelled)).max(axis=1)
 
     initial = plan.configurations_at(plan_t[formation])
     rebuilt = configuration_from_drone_positions(system, flown, initial=initial)
@@ -290,6 +368,8 @@ def _source_figures(
         error_off_path_max=_per_drone(off_path.max(axis=0)),
         inter_drone_error_p95=_p95(inter),
         inter_drone_error_max=float(inter.max()),
+        pair_error_common_p95=_p95(common),
+        pair_error_common_max=float(common.max()),
         common_offset_at_rest=_per_drone(_common_offset_at_rest(t, modelled, displacement)),
         converged=bool(rebuilt.converged.all()),
         feasible=bool(feasible.all()),
@@ -309,6 +389,7 @@ def _source_figures(
         "configurations": rebuilt.q.tolist(),
         "error_in_time": in_time.tolist(),
         "inter_drone_error": inter.tolist(),
+        "pair_error_common": common.tolist(),
         "slack_margin": statics.slack_margin.min(axis=1).tolist(),
         "overload_margin": statics.overload_margin.min(axis=1).tolist(),
         "thrust_margin": statics.thrust_margin.min(axis=1).tolist(),
@@ -318,14 +399,48 @@ def _source_figures(
     return figures, series
 
 
+def _team_stop(
+    plan: PlannedFlight,
+    vehicles: Sequence[VehicleLog],
+    releases: Releases,
+    commanded: float,
+    struck: float | None,
+) -> TeamStop:
+    """When each drone came to rest after a team stop commanded at mission time
+    ``commanded`` (true positions where there are, else estimates)."""
+    window = STOP_WINDOW_S
+    rests = []
+    for k, vehicle in enumerate(vehicles):
+        track = vehicle.true or vehicle.estimated
+        t = np.arange(commanded, releases.mission_time(k, track.time[-1:])[0] - window, 0.05)
+        at = releases.vehicle_time_of(k, t)
+        speed = np.linalg.norm(track.at(at + window) - track.at(at), axis=-1) / window
+        still = np.flatnonzero(speed <= STOPPED_SPEED)
+        rests.append(float(t[still[0]] - commanded) if still.size else math.inf)
+    return TeamStop(
+        detected_after=None if struck is None else commanded - struck,
+        commanded_at=commanded,
+        at_rest_after=(rests[0], rests[1], rests[2]),
+    )
+
+
 def flight_report(
     plan: PlannedFlight,
     vehicles: Sequence[VehicleLog],
     releases: Releases,
     parameter_differences: Sequence[str] = (),
+    stop: tuple[float, float | None] | None = None,
+    judge_after_stop: float = 3.0,
+    judge_all: bool = False,
 ) -> FlightReport:
-    """The report of a flight (module docstring)."""
-    timing, t, progress = _timing(plan, vehicles, releases)
+    """The report of a flight (module docstring). ``stop``: (mission time the team stop was
+    commanded, mission time of the fault that caused it): the flight is judged through the
+    stop and ``judge_after_stop`` [s] of the hold after it, or to its end (``judge_all``,
+    e.g. after a retreat)."""
+    judge_until = plan.duration if judge_all else None
+    if stop is not None and not judge_all:
+        judge_until = stop[0] + judge_after_stop
+    timing, t, progress = _timing(plan, vehicles, releases, judge_until)
     estimated, estimated_series = _source_figures(
         "estimated", plan, [v.estimated for v in vehicles], releases, t
     )
@@ -339,7 +454,7 @@ def flight_report(
     reasons = []
     if not (judged.feasible and judged.collision_free and judged.converged):
         reasons.append(f"{judged.source} positions: unsafe load {judged.first_unsafe}")
-    if releases.spread > tolerance:
+    if plan.mode == "missions" and releases.spread > tolerance:
         reasons.append(
             f"release spread {releases.spread:.3f} s beyond the plan's {tolerance:.3f} s"
         )
@@ -354,13 +469,15 @@ def flight_report(
             f"{model.common_horizontal:.3f} m horizontally and {model.common_vertical:.3f} m "
             "vertically: a frame error (home height, origin) or a steady push moves the load"
         )
-    if timing.progress_spread_p95 > tolerance:
+    if plan.mode == "missions" and timing.progress_spread_p95 > tolerance:
         warnings.append(
             f"drones {timing.progress_spread_p95:.3f} s apart in progress (p95), beyond the "
             f"plan's {tolerance:.3f} s"
         )
     return FlightReport(
-        planned_duration=plan.duration,
+        mode=plan.mode,
+        stop=None if stop is None else _team_stop(plan, vehicles, releases, *stop),
+        planned_duration=plan.nominal_duration or plan.duration,
         release_spread=releases.spread,
         start_offset_tolerance=tolerance,
         timing=timing,

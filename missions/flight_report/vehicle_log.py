@@ -74,6 +74,9 @@ class VehicleLog:
     true: PositionSeries | None  #: None without SIM_STATE (a real vehicle)
     current: SeqEvents  #: MISSION_CURRENT changes
     reached: SeqEvents  #: MISSION_ITEM_REACHED
+    #: common time minus vehicle time [s] (SYSTEM_TIME's UNIX time against its boot time:
+    #: GPS time on a real vehicle, the simulators' shared epoch on SITL); None without it
+    clock_offset: float | None = None
 
 
 def _timed(rows: Sequence[Sequence[float]], columns: int) -> NDArray[np.float64]:
@@ -94,8 +97,13 @@ def _track(rows: Sequence[Sequence[float]], origin: GeodeticOrigin) -> PositionS
     return PositionSeries(array[:, 0], enu, array[:, 1])
 
 
-def read_vehicle_log(path: Path, name: str, origin: GeodeticOrigin) -> VehicleLog:
-    """Read one drone's tlog (module docstring); positions in ENU about ``origin``.
+def read_vehicle_log(
+    path: Path, name: str, origin: GeodeticOrigin, home_height: float | None = None
+) -> VehicleLog:
+    """Read one drone's tlog (module docstring); positions in ENU about ``origin``. With
+    ``home_height``, the estimate's height is the vehicle's own above its home (relative
+    altitude), home standing that high above the ground, as the plan's altitudes count
+    (:class:`~missions.options.MissionOptions`); else its estimated AMSL altitude.
 
     Raises
     ------
@@ -111,6 +119,7 @@ def read_vehicle_log(path: Path, name: str, origin: GeodeticOrigin) -> VehicleLo
     current: list[list[float]] = []
     reached: list[list[float]] = []
     waiting: list[list[float]] = []  # untimed rows whose time is the next midpoint
+    offsets: list[float] = []
     boot: float | None = None
     system_id = 0
     try:
@@ -122,9 +131,14 @@ def read_vehicle_log(path: Path, name: str, origin: GeodeticOrigin) -> VehicleLo
                     row[0] = now if boot is None else (boot + now) / 2.0
                 waiting.clear()
                 boot = now
+            if kind == "SYSTEM_TIME" and msg.time_unix_usec > 0:
+                offsets.append(msg.time_unix_usec / 1e6 - msg.time_boot_ms / 1000.0)
             if kind == "GLOBAL_POSITION_INT" and (msg.lat or msg.lon):
                 system_id = msg.get_srcSystem()
-                estimated.append((now, stamp, msg.lat, msg.lon, msg.alt / 1000.0))
+                altitude = msg.alt / 1000.0
+                if home_height is not None:
+                    altitude = origin.altitude + home_height + msg.relative_alt / 1000.0
+                estimated.append((now, stamp, msg.lat, msg.lon, altitude))
             elif kind == "SIM_STATE":
                 lat = getattr(msg, "lat_int", 0) or round(msg.lat / DEGREE_UNIT)
                 lon = getattr(msg, "lon_int", 0) or round(msg.lon / DEGREE_UNIT)
@@ -148,4 +162,5 @@ def read_vehicle_log(path: Path, name: str, origin: GeodeticOrigin) -> VehicleLo
         true=_track(true, origin) if true else None,
         current=_events(current),
         reached=_events(reached),
+        clock_offset=float(np.median(offsets)) if offsets else None,
     )

@@ -146,13 +146,21 @@ class StartReport:
     resent: tuple[str, ...]
 
 
-def _send_back_to_back(links: Sequence[VehicleLink], specs: Sequence[MessageSpec]) -> list[float]:
+def _send_back_to_back(
+    links: Sequence[VehicleLink],
+    specs: Sequence[MessageSpec],
+    send_at: Sequence[float] | None = None,
+) -> list[float]:
     """Send each vehicle its message, all built beforehand so that the sends are
-    microseconds apart; the ground's monotonic time of each send [s]."""
-    sent = []
-    for link, spec in zip(links, specs, strict=True):
-        link.send(spec)
-        sent.append(time.monotonic())
+    microseconds apart (or each at its ground monotonic time ``send_at``); the ground's
+    monotonic time of each send [s]."""
+    sent = [0.0] * len(links)
+    order = sorted(range(len(links)), key=lambda k: send_at[k] if send_at else 0.0)
+    for k in order:
+        if send_at is not None:
+            time.sleep(max(send_at[k] - time.monotonic(), 0.0))
+        links[k].send(specs[k])
+        sent[k] = time.monotonic()
     return sent
 
 
@@ -231,14 +239,20 @@ class ReleaseReport:
         return max(self.sent_s) - min(self.sent_s)
 
 
-def release(links: Sequence[VehicleLink], seq: int, policy: RetryPolicy) -> ReleaseReport:
+def release(
+    links: Sequence[VehicleLink],
+    seq: int,
+    policy: RetryPolicy,
+    send_at: Sequence[float] | None = None,
+) -> ReleaseReport:
     """Release every vehicle at once from a hold into item ``seq`` (design.md section 9).
 
     MISSION_SET_CURRENT has no acknowledgement of its own: the vehicle confirms it with a
     MISSION_CURRENT naming ``seq``. The messages are built first and then sent back to
-    back (microseconds apart); a vehicle that did not confirm within a request timeout is
-    *not* sent it again: a late second release would start it a timeout after the others,
-    which is what this procedure exists to prevent.
+    back (microseconds apart), or each at its ground monotonic time ``send_at``; a vehicle
+    that did not confirm within a request timeout of the last send is *not* sent it
+    again: a late second release would start it a timeout after the others, which is what
+    this procedure exists to prevent.
 
     Raises
     ------
@@ -248,7 +262,8 @@ def release(links: Sequence[VehicleLink], seq: int, policy: RetryPolicy) -> Rele
     """
     inboxes = [link.subscribe(("MISSION_CURRENT",)) for link in links]
     try:
-        sent = _send_back_to_back(links, [mission_set_current(seq, link.target) for link in links])
+        specs = [mission_set_current(seq, link.target) for link in links]
+        sent = _send_back_to_back(links, specs, send_at)
         until = time.monotonic() + policy.request_timeout_s
         confirmed: list[float | None] = []
         for inbox in inboxes:

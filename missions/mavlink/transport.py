@@ -208,6 +208,7 @@ class VehicleLink:
         self._listeners: list[tuple[frozenset[str] | None, Listener]] = []
         self._info: VehicleInfo | None = None
         self._heard = threading.Event()
+        self._muted = threading.Event()
         self._stop = threading.Event()
         self._thread = threading.Thread(
             target=self._run, name=f"mavlink-link-{self.name}", daemon=True
@@ -239,11 +240,18 @@ class VehicleLink:
         return self.info
 
     def send(self, spec: MessageSpec) -> None:
-        """Encode and send one message (thread-safe)."""
+        """Encode and send one message (thread-safe); nothing once :meth:`mute` was called."""
+        if self._muted.is_set():
+            return
         msg = to_mavlink(spec)
         with self._send_lock:
             self._conn.mav.send(msg)
         logger.debug("%s <- %s %s", self.name, spec[0], spec[1])
+
+    def mute(self) -> None:
+        """Send nothing more, heartbeats included, and keep receiving: the vehicle's view of
+        a lost link (a fault a test injects)."""
+        self._muted.set()
 
     def subscribe(self, types: Iterable[str]) -> Inbox:
         """Queue every later message of ``types`` from the vehicle until the inbox closes."""

@@ -43,6 +43,9 @@ ARDUCOPTER_DEFAULTS: dict[str, tuple[float, int]] = {
     "WPNAV_SPEED_DN": (150.0, REAL32),
     "WPNAV_SPEED_UP": (250.0, REAL32),
     "WP_YAW_BEHAVIOR": (2.0, INT8),
+    "GUID_TIMEOUT": (3.0, REAL32),
+    "FS_GCS_ENABLE": (0.0, INT8),
+    "EK3_SRC1_POSZ": (1.0, INT8),
 }
 
 

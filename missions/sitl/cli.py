@@ -1,10 +1,19 @@
-"""``flycrane fly-sitl TASK_DIR``: fly a task's missions on three ArduCopter SITL instances
-and report the flight.
+"""``flycrane fly-sitl TASK_DIR``: fly a task on three ArduCopter SITL instances and report
+the flight.
+
+``--mode`` says who flies the plan (:mod:`missions.execution`): ``missions`` (the
+autopilots' own waypoint missions), ``stream`` (the ground, from one clock) or ``onboard``
+(a Lua player on each drone). ``--fault KIND:DRONE:AT[:VALUE]`` injects a fault
+(:mod:`missions.sitl.faults`); ``--stock-sensors`` flies SITL's sensors as they come (no
+barometer calibration, gyro drift on).
 
 SITL listens on every interface, so unless this process already is in a private network
 namespace, the command runs itself again inside a new one (:mod:`missions.sitl.netns`);
 ``--shared-network`` skips that where namespaces are unavailable (the simulators then listen
 on this machine's interfaces: use it only on an isolated machine).
+
+Exit status: 0 the flight was safe, 1 unsafe, 3 the release was refused (the vehicles did
+not position themselves as the plan assumes), 2 the flight could not be flown.
 """
 
 from __future__ import annotations
@@ -15,10 +24,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+from flycrane.errors import FlyCraneError
 from missions.flight_report import report_sitl_flight, write_report
+from missions.sitl.faults import KINDS, FaultPlan
 from missions.sitl.harness import SitlFlightOptions, fly_on_sitl
 from missions.sitl.netns import bring_up_loopback, isolated, isolated_command
 from missions.sitl.settings import SitlSettings
+
+#: Exit status of a flight whose release was refused.
+REFUSED = 3
 
 
 def _cmd_fly_sitl(args: argparse.Namespace) -> int:
@@ -27,25 +41,50 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
         return subprocess.run(isolated_command(command), check=False).returncode
     if isolated():
         bring_up_loopback()
-    settings = SitlSettings(speedup=args.speedup) if args.speedup else SitlSettings()
+    settings = SitlSettings()
+    if args.speedup:
+        settings = settings.model_copy(update={"speedup": args.speedup})
+    if args.stock_sensors:
+        settings = settings.model_copy(update={"calibrated_barometers": False, "gyro_drift": True})
     overrides = dict(args.parameter)
     delays = args.release_delays
     options = SitlFlightOptions(
+        mode=args.mode,
+        rate_hz=args.rate_hz,
         release_delays=(delays[0], delays[1], delays[2]),
         parameter_overrides=(overrides, overrides, overrides),
+        faults=tuple(args.fault),
+        on_fault=args.on_fault,
     )
     out = Path(args.out)
-    flight = fly_on_sitl(Path(args.task_dir), out, settings, options)
+    try:
+        flight = fly_on_sitl(Path(args.task_dir), out, settings, options)
+    except FlyCraneError as error:
+        print(f"fly-sitl: {error}", file=sys.stderr)
+        return 2
     flight.write(out)
+    if flight.refused:
+        print("release refused: " + "; ".join(flight.refused))
+        return REFUSED
     report, plan = report_sitl_flight(out)
-    files = write_report(report, plan, out, title=f"SITL flight of {args.task_dir}")
+    files = write_report(report, plan, out, title=f"SITL flight of {args.task_dir} ({args.mode})")
     timing, true = report.timing, report.true or report.estimated
     print(
-        f"flown {timing.flown_duration:.2f} s of {report.planned_duration:.2f} s planned; "
-        f"release spread {report.release_spread * 1000:.1f} ms; inter-drone error p95 "
-        f"{true.inter_drone_error_p95:.3f} m ({true.source}); least clearance "
+        f"{args.mode}: flown {timing.flown_duration:.2f} s of {report.planned_duration:.2f} s "
+        f"planned; release spread {report.release_spread * 1000:.1f} ms, start spread "
+        f"{timing.start_spread * 1000:.0f} ms; pair distance error p95 "
+        f"{true.pair_error_common_p95:.3f} m at one clock ({true.source}); least clearance "
         f"{true.least_clearance:.3f} m ({true.least_clearance_bodies})"
     )
+    if report.stop is not None:
+        stop = report.stop
+        print(
+            f"team stop at {stop.commanded_at:.2f} s"
+            + (f", {stop.detected_after:.2f} s after the fault" if stop.detected_after else "")
+            + "; at rest after "
+            + ", ".join(f"{s:.2f}" for s in stop.at_rest_after)
+            + " s"
+        )
     print(report.verdict)
     print(json.dumps({name: str(path) for name, path in files.items()}))
     return 0 if report.verdict.safe else 1
@@ -59,17 +98,50 @@ def _parameter(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
 
 
+def _fault(text: str) -> FaultPlan:
+    try:
+        return FaultPlan.parse(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def register(commands: argparse._SubParsersAction) -> None:
     """Add ``fly-sitl`` to the ``flycrane`` command line (entry point ``flycrane.commands``)."""
     command = commands.add_parser(
-        "fly-sitl", help="fly a task's missions on three ArduCopter SITL instances and report"
+        "fly-sitl",
+        help="fly a task on three ArduCopter SITL instances and report",
+        description=__doc__.split("\n\n")[1],
     )
     command.add_argument("task_dir", help="a task's directory (flycrane plan --out)")
     command.add_argument("--out", default="flight", help="directory for logs and the report")
+    command.add_argument(
+        "--mode", choices=("missions", "stream", "onboard"), default="missions",
+        help="who flies the plan: the autopilots' missions, the ground's targets from one "
+        "clock, or a player on board (default: missions)",
+    )  # fmt: skip
+    command.add_argument(
+        "--rate-hz", type=float, default=20.0,
+        help="targets per second in stream mode, ticks of the clock otherwise (10-50)",
+    )  # fmt: skip
     command.add_argument("--speedup", type=float, help="simulation speed-up (default: 10)")
     command.add_argument(
+        "--stock-sensors", action="store_true",
+        help="SITL's sensors as they come: no barometer calibration, gyro drift on",
+    )  # fmt: skip
+    command.add_argument(
+        "--fault", type=_fault, action="append", default=[], metavar="KIND:DRONE:AT[:VALUE]",
+        help=f"inject a fault ({', '.join(KINDS)}) on drone 1-3 at plan time AT [s]; VALUE: "
+        "a motor's thrust fraction, or a late start [s]",
+    )  # fmt: skip
+    command.add_argument(
+        "--on-fault", choices=("hold", "retreat"), default="hold",
+        help="after a team stop: hold, or take back the drones whose mode was switched and "
+        "retreat along the plan to its start (stream, onboard)",
+    )  # fmt: skip
+    command.add_argument(
         "--release-delays", nargs=3, type=float, default=(0.0, 0.0, 0.0), metavar="S",
-        help="release drone 1, 2, 3 this much later [s] (a deliberately perturbed flight)",
+        help="release drone 1, 2, 3 this much later [s] (missions mode; a deliberately "
+        "perturbed flight)",
     )  # fmt: skip
     command.add_argument(
         "--parameter", type=_parameter, action="append", default=[], metavar="NAME=VALUE",

@@ -1,71 +1,87 @@
-"""Fly a task's three missions on three ArduCopter SITL instances and record the flight.
+"""Fly a task on three ArduCopter SITL instances and record the flight.
 
 The procedure is the one a ground station follows with real vehicles (README "Flying the
 missions"), with the simulator's own additions marked:
 
 1. start three simulators homed on the ground below each drone's start (seq 0 of its
-   mission) [SITL];
-2. connect, ask for GLOBAL_POSITION_INT, MISSION_CURRENT and, from SITL, SIM_STATE (the
-   simulator's true position) at ``stream_hz``, and wait for every vehicle's position
+   mission), their clocks from one epoch (``--start-time``) [SITL];
+2. connect, ask for GLOBAL_POSITION_INT, MISSION_CURRENT, SYSTEM_TIME and, from SITL,
+   SIM_STATE (the simulator's true position), and wait for every vehicle's position
    estimate (EKF_STATUS_REPORT);
 3. set the parameters of the plan (``drone{k}.parm``), each confirmed, plus ARMING_CHECK
    0 [SITL: no RC] (a test may set wrong ones on purpose);
-4. upload each mission with read-back verification, and read the plan's parameters back
-   (the upload reports every one that differs, ``parameter_differences``);
-5. arm and start all three (MISSION_START): they take off and hold at their start in
-   NAV_LOITER_UNLIM;
-6. once all three hover steadily at the hold (slow, and each estimate within
-   ``settle_distance`` of its hold), release them together: MISSION_SET_CURRENT
-   to the first timed item, sent back to back (:func:`missions.mavlink.commands.release`);
-7. record until every drone holds at its end, then stop.
+4. upload each mission with read-back verification (``onboard``: the player's mission,
+   and its trajectory by MAVLink FTP), and read the plan's parameters back;
+5. arm and start all three (MISSION_START): they take off and hold at their start;
+6. once all three hover steadily at the hold, check that they position themselves as the
+   plan's position-error model assumes (:mod:`missions.execution.readiness`), and refuse
+   the release otherwise;
+7. hand the flight to the executor of the mode (:mod:`missions.execution`): ``missions``
+   releases the autopilots' own missions, ``stream`` flies the drones on targets from one
+   clock, ``onboard`` releases their players; inject the planned faults
+   (:mod:`missions.sitl.faults`) on cue; record until the plan's end, or a team stop and
+   ``hold_after_stop_s``.
 
 Everything the vehicles send is written to ``drone{k}.tlog`` (time base: the simulation's,
-:class:`~missions.mavlink.tlog.StretchedClock`), and what the ground did and when to
-``flight.json``. :mod:`missions.flight_report` reads both.
-
-Pace: each simulator steps by its own clock, so what it computes is right at any pace, and
-the flight report aligns the drones at their releases on their own clocks: a loaded
-machine that slows the simulators changes nothing but the wall time. A ground station's
-command still reaches each simulator at a wall-clock instant, so a simulator that nearly
-stalls would take it late in simulated time: the achieved rate of each (SYSTEM_TIME against
-the wall clock) is measured and a flight slower than ``min_rate`` of the speed-up is refused
-(:class:`SitlError`). Wall-clock waits are sized for that slowest pace.
+:class:`~missions.mavlink.tlog.StretchedClock`), what the ground did to ``flight.json`` and
+an executor's clock and faults to ``execution.json``; :mod:`missions.flight_report` reads
+them. Pace: the executors and the report work on the simulators' common clock, so a loaded
+machine that slows the simulators changes nothing but the wall time; a flight slower than
+``min_rate`` of the speed-up is refused (:class:`SitlError`).
 """
 
 from __future__ import annotations
 
+import json
 import logging
-import math
 import time
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Literal
 
-from missions.export.items import DroneMission, MissionItem
-from missions.flight_report.record import FlightRecord, VehicleRecord
-from missions.geodesy import DEGREE_UNIT, ardupilot_altitude, enu_from_geodetic
-from missions.mavlink.commands import ReleaseReport, release, set_message_interval
+from missions.execution.executor import ExecutionOptions, Executor
+from missions.execution.group_clock import RatePolicy
+from missions.execution.missions import MissionsExecutor
+from missions.execution.onboard import PLAYER_SCRIPT, OnboardExecutor
+from missions.execution.readiness import Readiness, check_readiness
+from missions.execution.stream import StreamExecutor
+from missions.execution.team import MonitorLimits
+from missions.export.items import DroneMission
+from missions.export.onboard import onboard_mission
+from missions.flight_report.record import EXECUTION_FILE, FlightRecord, VehicleRecord
+from missions.mavlink.commands import set_message_interval
+from missions.mavlink.errors import MavlinkError
 from missions.mavlink.fleet import Fleet, on_every_vehicle
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.tlog import StretchedClock, TlogWriter
 from missions.mavlink.transport import VehicleLink
 from missions.options import GeodeticOrigin
+from missions.position_error import PositionErrorModel, position_error_model
 from missions.sitl.errors import SitlError
+from missions.sitl.faults import FaultPlan, inject
 from missions.sitl.process import SitlGroup, SitlHome
 from missions.sitl.settings import SitlSettings
+from missions.sitl.watch import HoldWatch, RateMeter, wait_for
 from missions.task.directory import TaskDirectory
+from missions.trajectory.drone_trajectory import DroneTrajectory
 
 logger = logging.getLogger(__name__)
 
+Mode = Literal["missions", "stream", "onboard"]
 #: Parameters the simulator needs and a real vehicle must not get from us.
 SITL_PARAMETERS = {"ARMING_CHECK": 0.0}  # no RC, no pre-arm checks to pass
 #: EKF_STATUS_REPORT flags of a usable position estimate: attitude, horizontal and vertical
 #: velocity, absolute horizontal and vertical position.
 EKF_READY = 1 | 2 | 4 | 16 | 32
 #: Messages the flight report needs, besides what the vehicle sends unasked.
-RECORDED_STREAMS = ("GLOBAL_POSITION_INT", "SIM_STATE", "MISSION_CURRENT")
-#: The time base check: SYSTEM_TIME every this many simulated seconds.
+RECORDED_STREAMS = (
+    "GLOBAL_POSITION_INT",
+    "SIM_STATE",
+    "MISSION_CURRENT",
+    "POSITION_TARGET_LOCAL_NED",
+)
+#: The common clock and the pace: SYSTEM_TIME every this many simulated seconds.
 SYSTEM_TIME_INTERVAL_S = 0.5
 
 
@@ -73,7 +89,9 @@ SYSTEM_TIME_INTERVAL_S = 0.5
 class SitlFlightOptions:
     """How a SITL flight is flown and recorded (times in simulated seconds)."""
 
-    stream_hz: float = 50.0
+    mode: Mode = "missions"
+    stream_hz: float = 50.0  #: recorded telemetry
+    rate_hz: float = 20.0  #: the executor's ticks (stream: targets per second)
     settle_s: float = 3.0  #: steady hover at the hold before the release
     settle_speed: float = 0.05  #: [m/s] "steady": every drone slower than this
     #: [m] "steady": and every drone's estimate this close to its hold. Slow alone is not
@@ -82,10 +100,17 @@ class SitlFlightOptions:
     #: mission below their hold (BENCHMARKS.md, "Home height")
     settle_distance: float = 0.02
     end_margin_s: float = 3.0  #: recorded after the last drone reached its end
-    #: extra delay of each drone's release [s]: a deliberately perturbed flight
+    hold_after_stop_s: float = 3.0  #: recorded after a team stop
+    #: extra delay of each drone's release [s] (``missions``): a deliberately perturbed flight
     release_delays: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #: parameters set on each vehicle after the plan's (a deliberately wrong setting)
     parameter_overrides: tuple[Mapping[str, float], ...] = field(default_factory=tuple)
+    faults: tuple[FaultPlan, ...] = ()
+    #: what the operator does after a team stop and ``hold_after_stop_s``: hold, or take
+    #: the drones that left the execution's mode back and retreat along the plan to its
+    #: start (stream and onboard)
+    on_fault: Literal["hold", "retreat"] = "hold"
+    check_readiness: bool = True  #: refuse the release when positioning is not the model's
 
 
 @dataclass(frozen=True)
@@ -97,7 +122,11 @@ class FlightPlanFiles:
     hold_seq: int  #: the NAV_LOITER_UNLIM at the start
     release_seq: int  #: the item the release jumps to
     end_seq: tuple[int, ...]  #: per drone, its last item (the hold at the end)
-    duration_s: float  #: the plan's duration after the release
+    duration_s: float  #: the missions' duration after the release
+    trajectory: DroneTrajectory
+    model: PositionErrorModel
+    origin: GeodeticOrigin
+    home_height: float
 
     @classmethod
     def read(cls, task_dir: Path) -> FlightPlanFiles:
@@ -110,15 +139,28 @@ class FlightPlanFiles:
         """
         directory = TaskDirectory(task_dir)
         missions = directory.missions()
-        mission = directory.mission_summary()
+        summary = directory.mission_summary()
+        options = directory.task().mission
         return cls(
             missions=tuple(missions),
             parameters=tuple(directory.parameters()),
-            hold_seq=mission.release.hold_seq,
-            release_seq=mission.release.release_seq,
+            hold_seq=summary.release.hold_seq,
+            release_seq=summary.release.release_seq,
             end_seq=tuple(m.items[-1].seq for m in missions),
-            duration_s=mission.duration,
+            duration_s=summary.duration,
+            trajectory=directory.trajectory(),
+            model=position_error_model(options.position_error),
+            origin=options.origin,
+            home_height=options.home_height,
         )
+
+    def for_mode(self, mode: Mode) -> tuple[tuple[DroneMission, ...], int]:
+        """The missions to upload for ``mode``, and the item the executor starts."""
+        if mode == "onboard":
+            return tuple(onboard_mission(m, self.hold_seq) for m in self.missions), (
+                self.hold_seq + 1
+            )
+        return self.missions, self.release_seq
 
 
 def _policy(settings: SitlSettings) -> RetryPolicy:
@@ -141,146 +183,6 @@ def _homes(missions: Sequence[DroneMission]) -> list[SitlHome]:
     ]
 
 
-def _wait_for(
-    links: Sequence[VehicleLink],
-    types: tuple[str, ...],
-    done: Callable[[VehicleLink, Any], bool],
-    timeout_s: float,
-    what: str,
-) -> None:
-    """Wait until ``done(link, msg)`` held for a message from every link."""
-    pending = {link.name for link in links}
-    inboxes = {link.name: link.subscribe(types) for link in links}
-    deadline = time.monotonic() + timeout_s
-    try:
-        while pending:
-            if time.monotonic() > deadline:
-                raise SitlError(f"{what}: {sorted(pending)} not within {timeout_s:.0f} s")
-            for link in links:
-                if link.name in pending:
-                    msg = inboxes[link.name].get(0.01)
-                    if msg is not None and done(link, msg):
-                        pending.discard(link.name)
-    finally:
-        for inbox in inboxes.values():
-            inbox.close()
-
-
-class _RateMeter:
-    """Simulated seconds per wall second of every vehicle, from SYSTEM_TIME."""
-
-    def __init__(self, links: Sequence[VehicleLink]) -> None:
-        self.first: dict[str, tuple[float, float]] = {}
-        self.last: dict[str, tuple[float, float]] = {}
-        for link in links:
-            link.add_listener(("SYSTEM_TIME",), self._listener(link.name))
-
-    def _listener(self, name: str) -> Callable[[Any], None]:
-        def on(msg: Any) -> None:
-            sample = (time.monotonic(), msg.time_boot_ms / 1000.0)
-            self.first.setdefault(name, sample)
-            self.last[name] = sample
-
-        return on
-
-    def rates(self) -> dict[str, float]:
-        rates = {}
-        for name, (wall0, boot0) in self.first.items():
-            wall1, boot1 = self.last[name]
-            rates[name] = (boot1 - boot0) / (wall1 - wall0) if wall1 > wall0 else 0.0
-        return rates
-
-
-def _release(
-    links: Sequence[VehicleLink],
-    seq: int,
-    delays: Sequence[float],
-    speedup: float,
-    policy: RetryPolicy,
-) -> ReleaseReport:
-    """The synchronized release; with ``delays``, drones released that much later
-    [simulated s] (a perturbed flight, for tests of the flight report)."""
-    start = time.monotonic()
-    reports: dict[str, tuple[float, float]] = {}
-    for delay in sorted(set(delays)):
-        group = [link for link, d in zip(links, delays, strict=True) if d == delay]
-        time.sleep(max(start + delay / speedup - time.monotonic(), 0.0))
-        report = release(group, seq, policy)
-        for name, sent, confirmed in zip(
-            report.vehicles, report.sent_s, report.confirmed_s, strict=True
-        ):
-            reports[name] = (sent, confirmed)
-    names = tuple(link.name for link in links)
-    return ReleaseReport(
-        names, seq, tuple(reports[n][0] for n in names), tuple(reports[n][1] for n in names)
-    )
-
-
-class _Progress:
-    """The latest MISSION_CURRENT and time of every vehicle, and since when it has been
-    steady at its hold: slower than ``settle_speed`` [m/s] and its estimate within
-    ``settle_distance`` [m] of ``holds`` (reader threads)."""
-
-    def __init__(
-        self,
-        links: Sequence[VehicleLink],
-        holds: Sequence[MissionItem],
-        settle_speed: float,
-        settle_distance: float,
-    ) -> None:
-        self.current = {link.name: -1 for link in links}
-        self.slow_since: dict[str, float | None] = {link.name: None for link in links}
-        self.boot_s = {link.name: 0.0 for link in links}
-        self.settle_speed = settle_speed
-        self.settle_distance = settle_distance
-        # each hold where ArduPilot flies it: its latitude and longitude, and its altitude
-        # above home in whole centimetres (relative_alt is above home too)
-        self._holds = {
-            link.name: GeodeticOrigin(
-                latitude=hold.x * DEGREE_UNIT,
-                longitude=hold.y * DEGREE_UNIT,
-                altitude=float(ardupilot_altitude(hold.z)),
-            )
-            for link, hold in zip(links, holds, strict=True)
-        }
-        self._links = links
-        for link in links:
-            link.add_listener(("MISSION_CURRENT", "GLOBAL_POSITION_INT"), self._listener(link.name))
-
-    def _listener(self, name: str) -> Callable[[Any], None]:
-        def on(msg: Any) -> None:
-            if msg.get_type() == "MISSION_CURRENT":
-                if msg.seq != self.current[name]:
-                    self.current[name] = msg.seq
-                    self.slow_since[name] = None
-                return
-            now = msg.time_boot_ms / 1000.0
-            self.boot_s[name] = now
-            speed = (msg.vx**2 + msg.vy**2 + msg.vz**2) ** 0.5 / 100.0
-            offset = enu_from_geodetic(
-                msg.lat * DEGREE_UNIT, msg.lon * DEGREE_UNIT, msg.relative_alt / 1000.0,
-                self._holds[name],
-            )  # fmt: skip
-            if speed > self.settle_speed or math.hypot(*offset) > self.settle_distance:
-                self.slow_since[name] = None
-            elif self.slow_since[name] is None:
-                self.slow_since[name] = now
-
-        return on
-
-    def steady_for(self, name: str) -> float:
-        since = self.slow_since[name]
-        return 0.0 if since is None else self.boot_s[name] - since
-
-    def wait(self, condition: Callable[[], bool], timeout_s: float, what: str) -> None:
-        deadline = time.monotonic() + timeout_s
-        while not condition():
-            if time.monotonic() > deadline:
-                state = {n: (self.current[n], round(self.steady_for(n), 2)) for n in self.current}
-                raise SitlError(f"{what} not within {timeout_s:.0f} s (seq, steady s): {state}")
-            time.sleep(0.005)
-
-
 def fly_on_sitl(
     task_dir: Path,
     out_dir: Path,
@@ -294,29 +196,60 @@ def fly_on_sitl(
     Raises
     ------
     SitlError
-        If the simulators cannot be started, reached, readied, or kept at pace.
+        If the simulators cannot be started, reached (an instance that exited is named with
+        its console's last lines), readied, or kept at pace.
     FleetError
         If a vehicle refused a parameter, the upload, arming or the start.
     """
     settings = settings or SitlSettings()
     options = options or SitlFlightOptions()
+    task_dir, out_dir = task_dir.resolve(), out_dir.resolve()
     plan = FlightPlanFiles.read(task_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     policy = _policy(settings)
     names = [f"drone{k}" for k in (1, 2, 3)]
-    with SitlGroup(settings, _homes(plan.missions), out_dir / "sitl") as instances:
+    scripts = (PLAYER_SCRIPT,) if options.mode == "onboard" else ()
+    group = SitlGroup(settings, _homes(plan.missions), out_dir / "sitl", scripts=scripts)
+    with group as instances:
         wall0, utc0 = time.monotonic(), time.time()
         clock = StretchedClock(settings.speedup, utc0, wall0)
-        with Fleet.connect([i.address for i in instances], policy, names) as fleet:
+        try:
+            fleet = Fleet.connect([i.address for i in instances], policy, names)
+        except MavlinkError:
+            group.check_running()  # a simulator that exited says why
+            raise
+        with fleet:
             writers = [
                 TlogWriter(link, out_dir / f"{link.name}.tlog", clock).start()
                 for link in fleet.links
             ]
             try:
-                return _fly(fleet, plan, settings, options, policy, clock, task_dir, writers)
+                return _fly(fleet, plan, settings, options, policy, clock, task_dir, out_dir)
             finally:
                 for writer in writers:
                     writer.stop()
+
+
+def _executor(
+    mode: Mode, links: Sequence[VehicleLink], plan: FlightPlanFiles, options: SitlFlightOptions,
+    speedup: float, policy: RetryPolicy, start_seq: int,
+) -> Executor:  # fmt: skip
+    """The executor of ``mode``, its tolerances from the task's position-error model: the
+    plan's clearance is what a drone's error may spend."""
+    clearance = plan.model.obstacle_clearance
+    execution = ExecutionOptions(
+        rate_hz=options.rate_hz,
+        policy=RatePolicy(tracking_tolerance=clearance, formation_tolerance=clearance),
+        limits=MonitorLimits(stray_distance=2 * clearance, min_fix_type=plan.model.min_fix_type),
+    )
+    common = dict(options=execution, speedup=speedup, retry=policy)
+    if mode == "stream":
+        return StreamExecutor(links, plan.trajectory, plan.origin, **common)  # type: ignore[arg-type]
+    if mode == "onboard":
+        return OnboardExecutor(links, plan.trajectory, plan.origin, player_seq=start_seq,
+                               **common)  # type: ignore[arg-type]  # fmt: skip
+    return MissionsExecutor(links, plan.trajectory, plan.origin, release_seq=start_seq,
+                            **common)  # type: ignore[arg-type]  # fmt: skip
 
 
 def _fly(
@@ -327,7 +260,7 @@ def _fly(
     policy: RetryPolicy,
     clock: StretchedClock,
     task_dir: Path,
-    writers: Sequence[TlogWriter],
+    out_dir: Path,
 ) -> FlightRecord:
     links = fleet.links
     sim = settings.speedup
@@ -336,10 +269,10 @@ def _fly(
         for name in RECORDED_STREAMS:
             set_message_interval(link, name, 1.0 / options.stream_hz, policy)
         set_message_interval(link, "SYSTEM_TIME", SYSTEM_TIME_INTERVAL_S, policy)
-        set_message_interval(link, "EKF_STATUS_REPORT", 0.5, policy)
+        set_message_interval(link, "EKF_STATUS_REPORT", 0.1, policy)
 
     on_every_vehicle(links, "stream", streams)
-    _wait_for(
+    wait_for(
         links,
         ("EKF_STATUS_REPORT",),
         lambda _, msg: (msg.flags & EKF_READY) == EKF_READY,
@@ -353,39 +286,44 @@ def _fly(
             values.update(options.parameter_overrides[k])
         parameters[link.name] = values
     fleet.set_parameters([parameters[link.name] for link in links])
+    missions, start_seq = plan.for_mode(options.mode)
     # the upload reads the plan's parameters back, as it does for a ground station's user
-    uploads = fleet.upload(plan.missions, parameters=plan.parameters)
+    uploads = fleet.upload(missions, parameters=plan.parameters)
     differences = tuple(str(error) for upload in uploads for error in upload.parameter_errors)
-    holds = [m.items[plan.hold_seq] for m in plan.missions]
-    progress = _Progress(links, holds, options.settle_speed, options.settle_distance)
-    rates = _RateMeter(links)
+    executor = _executor(options.mode, links, plan, options, sim, policy, start_seq)
+    pace = sim * settings.min_rate  # waits in wall time are sized for the slowest pace
+    if isinstance(executor, OnboardExecutor):
+        executor.upload(timeout=60.0)
+    holds = [m.items[plan.hold_seq] for m in missions]
+    watch = HoldWatch(links, holds, options.settle_speed, options.settle_distance)
+    rates = RateMeter(links)
     fleet.arm()
     fleet.start()
-    # waits in wall time for the slowest pace accepted
-    pace = sim * settings.min_rate
     # takeoff and settling take tens of simulated seconds: give them minutes
-    airborne_s = 300.0 / pace + 30.0
-    progress.wait(
+    watch.wait(
         lambda: all(
-            progress.current[n] == plan.hold_seq and progress.steady_for(n) >= options.settle_s
-            for n in progress.current
+            watch.current[n] == plan.hold_seq and watch.steady_for(n) >= options.settle_s
+            for n in watch.current
         ),
-        airborne_s,
+        300.0 / pace + 30.0,
         "every drone steady at its start hold",
     )
-    report = _release(links, plan.release_seq, options.release_delays, sim, policy)
-    flight_s = (2.0 * plan.duration_s + max(options.release_delays) + 30.0) / pace
-    progress.wait(
-        lambda: all(progress.current[link.name] == plan.end_seq[k] for k, link in enumerate(links)),
-        flight_s,
-        "every drone at its end hold",
-    )
-    end_boot = dict(progress.boot_s)
-    progress.wait(
-        lambda: all(progress.boot_s[n] >= end_boot[n] + options.end_margin_s for n in end_boot),
-        options.end_margin_s / pace + 10.0,
-        "the end margin",
-    )
+    readiness = Readiness()
+    if options.check_readiness:
+        readiness = check_readiness(
+            links, plan.model, plan.trajectory.in_task_frame(plan.trajectory.position[0]),
+            plan.origin, plan.home_height, policy,
+        )  # fmt: skip
+    injected: list[dict] = []
+    if readiness.ready:
+        injected = _execute(executor, plan, options, policy, pace)
+        (out_dir / EXECUTION_FILE).write_text(
+            json.dumps(executor.record.as_dict() if executor.record else {}, indent=2) + "\n",
+            encoding="utf-8",
+        )
+    else:
+        logger.warning("release refused: %s", "; ".join(readiness.reasons))
+    _wait_margin(watch, options.end_margin_s, pace)
     achieved = rates.rates()
     slow = {n: r for n, r in achieved.items() if r < settings.min_rate * sim}
     if slow:
@@ -393,14 +331,15 @@ def _fly(
             f"simulators ran slower than {settings.min_rate:.0%} of x{sim:g}: "
             + ", ".join(f"{n} x{r:.2f}" for n, r in slow.items())
         )
+    report = executor.report if isinstance(executor, MissionsExecutor) else None
     vehicles = tuple(
         VehicleRecord(
             name=link.name,
             system_id=link.info.system_id,
-            tlog=writers[k].path.name,
+            tlog=f"{link.name}.tlog",
             rate=achieved[link.name],
-            release_sent_s=clock.at(report.sent_s[k]),
-            release_confirmed_s=clock.at(report.confirmed_s[k]),
+            release_sent_s=clock.at(report.sent_s[k]) if report else 0.0,
+            release_confirmed_s=clock.at(report.confirmed_s[k]) if report else 0.0,
         )
         for k, link in enumerate(links)
     )
@@ -408,11 +347,111 @@ def _fly(
         task_dir=str(task_dir),
         speedup=sim,
         hold_seq=plan.hold_seq,
-        release_seq=plan.release_seq,
-        end_seq=plan.end_seq,
+        release_seq=start_seq,
+        end_seq=tuple(m.items[-1].seq for m in missions),
         planned_duration_s=plan.duration_s,
         vehicles=vehicles,
         parameters=parameters,
         release_delays=options.release_delays,
         parameter_differences=differences,
+        mode=options.mode,
+        refused=tuple(readiness.reasons),
+        faults=tuple(injected),
+    )
+
+
+def _execute(
+    executor: Executor,
+    plan: FlightPlanFiles,
+    options: SitlFlightOptions,
+    policy: RetryPolicy,
+    pace: float,
+) -> list[dict]:
+    """Play the plan with ``executor``, injecting ``options.faults`` on cue; until the
+    plan's end, or a team stop and ``hold_after_stop_s``."""
+    executor.prepare(timeout=60.0)
+    if isinstance(executor, MissionsExecutor):
+        executor.engage(30.0, options.release_delays)
+    else:
+        executor.engage(30.0)
+    for fault in options.faults:
+        if fault.kind == "late":
+            executor.hold_back(fault.drone, fault.value)
+    record = executor.start()
+    duration = plan.duration_s if isinstance(executor, MissionsExecutor) else record.duration
+    pending = sorted((f for f in options.faults if f.kind != "late"), key=lambda f: f.at)
+    injected: list[dict] = [asdict(f) | {"time": record.start} for f in options.faults
+                            if f.kind == "late"]  # fmt: skip
+    deadline = time.monotonic() + (2.0 * duration + 60.0) / pace
+    stopped_at: float | None = None
+    retreating = False
+    while time.monotonic() < deadline:
+        now = executor.present()
+        elapsed = now - record.start
+        while pending and elapsed >= pending[0].at:
+            fault = pending.pop(0)
+            injected.append(inject(fault, executor, policy) | {"time": executor.present()})
+        if executor.stopped:
+            stopped_at = stopped_at or now
+            if now - stopped_at >= options.hold_after_stop_s + 1.0:
+                if options.on_fault == "retreat" and not retreating:
+                    retreating = _retreat(executor, injected, pace)
+                    if retreating:
+                        continue
+                break
+        elif retreating:
+            if executor.at_start:
+                break
+        elif _finished(executor, plan, now, record.start, duration):
+            break
+        time.sleep(0.01)
+    else:
+        raise SitlError(f"{executor.mode} flight did not end within {2.0 * duration + 60.0:.0f} s")
+    executor.stop()
+    return injected
+
+
+def _retreat(executor: Executor, injected: list[dict], pace: float) -> bool:
+    """The operator's retreat after a team stop: take back the drones whose mode was
+    switched, then fly the plan backwards to its start; False if the team cannot (a fault
+    remains), which is recorded."""
+    if isinstance(executor, MissionsExecutor):
+        return False
+    for fault in injected:
+        if fault["kind"] == "mode":
+            executor.restore_mode(fault["drone"])
+    deadline = time.monotonic() + 10.0 / pace
+    while True:
+        try:
+            executor.retreat()
+        except RuntimeError as error:
+            if time.monotonic() < deadline:
+                time.sleep(0.05)
+                continue
+            logger.warning("no retreat: %s", error)
+            injected.append({"kind": "operator", "action": "hold", "reason": str(error)})
+            return False
+        injected.append({"kind": "operator", "action": "retreat", "time": executor.present()})
+        return True
+
+
+def _finished(
+    executor: Executor, plan: FlightPlanFiles, now: float, start: float, duration: float
+) -> bool:
+    """Whether the plan is over: its clock at the end (stream, onboard), or every drone in
+    its last item (missions)."""
+    if isinstance(executor, MissionsExecutor):
+        return now - start > 0.0 and all(
+            v.mission_seq == plan.end_seq[k] for k, v in enumerate(executor.vehicles)
+        )
+    return executor.wait(0.0)
+
+
+def _wait_margin(watch: HoldWatch, margin: float, pace: float) -> None:
+    """``margin`` of simulated time more, recorded."""
+    end_boot = dict(watch.boot_s)
+    watch.wait(
+        lambda: all(watch.boot_s[n] >= end_boot[n] + margin for n in end_boot),
+        margin / pace + 10.0,
+        "the end margin",
     )

@@ -76,31 +76,41 @@ class SitlInstance:
 SITL_BARO_GROUND_TEMPERATURE = 15.0
 
 
-def defaults_file(settings: SitlSettings, directory: Path) -> Path:
+def defaults_file(settings: SitlSettings, directory: Path, scripting: bool = False) -> Path:
     """The defaults SITL boots with: the configured file, plus calibrated barometers
-    (:attr:`SitlSettings.calibrated_barometers`) and no artificial gyro drift
-    (:attr:`SitlSettings.gyro_drift`). A defaults file is read before the barometers are
-    calibrated: the only time BARO_GND_TEMP may change (:mod:`missions.autopilots.ardupilot`,
-    "Parameters")."""
+    (:attr:`SitlSettings.calibrated_barometers`), no artificial gyro drift
+    (:attr:`SitlSettings.gyro_drift`) and, with ``scripting``, Lua scripts (SCR_ENABLE,
+    read at boot). A defaults file is read before the barometers are calibrated: the only
+    time BARO_GND_TEMP may change (:mod:`missions.autopilots.ardupilot`, "Parameters").
+    The path returned is absolute: SITL reads it from its own working directory."""
     extra = []
     if settings.calibrated_barometers:
         extra.append(f"BARO_GND_TEMP {SITL_BARO_GROUND_TEMPERATURE}")
     if not settings.gyro_drift:
         extra.append("SIM_DRIFT_SPEED 0")
+    if scripting:
+        extra.append("SCR_ENABLE 1")
     if not extra:
-        return settings.defaults_file
-    path = directory / "defaults.parm"
+        return settings.defaults_file.resolve()
+    path = directory.resolve() / "defaults.parm"
     base = settings.defaults_file.read_text(encoding="utf-8")
     path.write_text("\n".join([base.rstrip(), *extra]) + "\n", encoding="utf-8")
     return path
 
 
 def sitl_command(
-    settings: SitlSettings, index: int, system_id: int, home: SitlHome, defaults: Path
+    settings: SitlSettings,
+    index: int,
+    system_id: int,
+    home: SitlHome,
+    defaults: Path,
+    start_time: int | None = None,
 ) -> list[str]:
-    """The command line of instance ``index`` (see ``../shared/sitl/README.md``)."""
+    """The command line of instance ``index`` (see ``../shared/sitl/README.md``);
+    ``start_time`` [s since the Unix epoch]: the simulated clock's epoch, the same for every
+    instance of a flight, so that their UNIX times (SYSTEM_TIME) are one common clock."""
     command = [
-        str(settings.binary),
+        str(settings.binary.resolve()),
         "-w",  # wipe stored parameters: every flight starts from the defaults file
         "--model",
         "quad",
@@ -115,6 +125,8 @@ def sitl_command(
         "--home",
         home.argument(),
     ]
+    if start_time is not None:
+        command += ["--start-time", str(int(start_time))]
     if shutil.which("setpriv"):
         return ["setpriv", "--pdeathsig", "KILL", "--", *command]
     return command
@@ -130,12 +142,21 @@ class SitlGroup:
     """
 
     def __init__(
-        self, settings: SitlSettings, homes: list[SitlHome], directory: Path, first_sysid: int = 1
+        self,
+        settings: SitlSettings,
+        homes: list[SitlHome],
+        directory: Path,
+        first_sysid: int = 1,
+        scripts: tuple[Path, ...] = (),
     ) -> None:
         self.settings = settings
         self.homes = homes
-        self.directory = directory
+        # absolute: each instance runs in its own working directory
+        self.directory = directory.resolve()
         self.first_sysid = first_sysid
+        self.scripts = scripts  #: Lua scripts every instance runs (copied into scripts/)
+        #: the simulated clocks' common epoch (``--start-time``)
+        self.start_time = int(time.time())
         self.instances: list[SitlInstance] = []
         self._processes: list[subprocess.Popen[bytes]] = []
         self._owner = threading.get_ident()
@@ -153,10 +174,17 @@ class SitlGroup:
                 workdir = self.directory / f"sitl{index}"
                 workdir.mkdir(exist_ok=True)
                 system_id = self.first_sysid + index
-                defaults = defaults_file(self.settings, workdir)
+                defaults = defaults_file(self.settings, workdir, scripting=bool(self.scripts))
+                if self.scripts:
+                    (workdir / "scripts").mkdir(exist_ok=True)
+                    for script in self.scripts:
+                        shutil.copyfile(script, workdir / "scripts" / script.name)
+                command = sitl_command(
+                    self.settings, index, system_id, home, defaults, self.start_time
+                )
                 with open(workdir / "console.log", "wb") as console:
                     process = subprocess.Popen(
-                        sitl_command(self.settings, index, system_id, home, defaults),
+                        command,
                         cwd=workdir,
                         stdin=subprocess.DEVNULL,
                         stdout=console,
@@ -180,12 +208,13 @@ class SitlGroup:
         deadline = time.monotonic() + LISTEN_TIMEOUT_S
         ports = {BASE_PORT + 10 * i.index for i in self.instances}
         while not ports <= listening_tcp_ports():
-            self._check_running()
+            self.check_running()
             if time.monotonic() > deadline:
                 raise SitlError(f"SITL ports {sorted(ports)} not listening in {LISTEN_TIMEOUT_S} s")
             time.sleep(0.02)
 
-    def _check_running(self) -> None:
+    def check_running(self) -> None:
+        """Raise :class:`SitlError` with the end of its console if an instance exited."""
         for instance, process in zip(self.instances, self._processes, strict=True):
             if process.poll() is not None:
                 log = (instance.workdir / "console.log").read_text(errors="replace")[-2000:]

@@ -23,6 +23,7 @@ from missions.position_error import position_error_model
 from missions.task.directory import MissionSummary, Release, Tracks
 from missions.task.resolve import ResolvedTask
 from missions.trajectory.annotations import Annotations, annotate
+from missions.trajectory.drone_trajectory import DroneTrajectory
 from missions.trajectory.flight_plan import FlightPlan, plan_flight
 from missions.trajectory.timing_tolerance import timing_tolerance
 from missions.trajectory.tracks import Track, track_from_path
@@ -49,6 +50,7 @@ class BuiltMissions:
     missions: tuple[DroneMission, ...]
     tracks: Tracks
     summary: MissionSummary
+    trajectory: DroneTrajectory  #: each drone's time law, for executors that stream it
 
 
 def build(resolved: ResolvedTask, path: NDArray[np.float64]) -> BuiltMissions:
@@ -114,4 +116,5 @@ def build(resolved: ResolvedTask, path: NDArray[np.float64]) -> BuiltMissions:
         lift_off=resolved.lift_off,
         set_down=flight.set_down,
     )
-    return BuiltMissions(flight, track, annotations, tuple(missions), tracks, summary)
+    trajectory = DroneTrajectory.of_plan(dense, options, resolved.set_down)
+    return BuiltMissions(flight, track, annotations, tuple(missions), tracks, summary, trajectory)

@@ -13,7 +13,9 @@ task.json              the task written out whole (system, scene, start, goal, p
 path.json              the smoothed path and the planner's raw one (configurations)
 tracks.json            waypoints, dense plan, speed limits, annotations, modelled motion
 drone{k}.waypoints     drone k's mission, QGC WPL 110; ``.plan`` QGroundControl; ``.mission
-                       .json`` lossless; ``.parm`` the parameters its timing assumes
+                       .json`` lossless; ``.parm`` the parameters its timing assumes;
+                       ``.trajectory.csv`` its time law (:mod:`missions.export.
+                       trajectory_file`)
 mission.mcap           the mission for Foxglove; profile.png the tensions and thrusts
 summary.json           :class:`TaskOutcome`: status, planner statistics, metrics, mission
 =====================  =====================================================================
@@ -30,14 +32,17 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.errors import FlyCraneError
+from flycrane.errors import FlyCraneError, InputError
 from flycrane.planning.metrics import PathMetrics
 from missions.autopilots.spline import SpeedLimits
 from missions.export.formats import dumps, mission_from_json
 from missions.export.items import DroneMission
 from missions.export.parameter_file import parse_parameter_file
+from missions.export.trajectory_file import read_trajectory_text
+from missions.geodesy import enu_from_geodetic, enu_from_ned
 from missions.position_error import PositionErrorModel
 from missions.task.spec import TaskSpec
+from missions.trajectory.drone_trajectory import DroneTrajectory
 from missions.trajectory.flight_plan import SetDown
 from missions.trajectory.motion import DroneMotion
 from missions.trajectory.timing_tolerance import TimingTolerance
@@ -51,7 +56,7 @@ MCAP_FILE = "mission.mcap"
 PROFILE_FILE = "profile.png"
 DRONES = (1, 2, 3)
 #: The files of each drone's mission, in the order they are written.
-MISSION_SUFFIXES = ("waypoints", "plan", "mission.json", "parm")
+MISSION_SUFFIXES = ("waypoints", "plan", "mission.json", "parm", "trajectory.csv")
 
 Status = Literal["done", "failed", "cancelled"]
 
@@ -334,6 +339,32 @@ class TaskDirectory:
     def missions(self, drones: Iterable[int] = DRONES) -> list[DroneMission]:
         """Each drone's mission (``drone{k}.mission.json``)."""
         return [self._model(mission_file(k, "mission.json"), mission_from_json) for k in drones]
+
+    def trajectory(self) -> DroneTrajectory:
+        """The three drones' trajectories (``drone{k}.trajectory.csv``), in the task's frame
+        (its origin from task.json)."""
+        origin = self.task().mission.origin
+        rows, homes = [], []
+        for k in DRONES:
+            name = mission_file(k, "trajectory.csv")
+            try:
+                time, data, home, set_down = read_trajectory_text(self.read_text(name), name)
+            except InputError as error:
+                raise TaskDirectoryError(self.path, name, str(error)) from None
+            rows.append(data)
+            homes.append(home)
+        if any(len(r) != len(time) for r in rows):
+            raise TaskDirectoryError(self.path, "drone*.trajectory.csv", "differ in length")
+        enu = np.stack([enu_from_ned(r.reshape(-1, 3, 3)) for r in rows], axis=1)
+        lat, lon, alt = np.array(homes).T
+        return DroneTrajectory(
+            time,
+            enu[:, :, 0],
+            enu[:, :, 1],
+            enu[:, :, 2],
+            enu_from_geodetic(lat, lon, alt, origin),
+            set_down,
+        )
 
     def parameters(self, drones: Iterable[int] = DRONES) -> list[dict[str, float]]:
         """The parameters each drone's mission assumes (``drone{k}.parm``)."""

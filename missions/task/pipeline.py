@@ -19,9 +19,13 @@ from typing import Literal
 from flycrane.analysis.profiles import path_profile, plot_path_profile
 from flycrane.planning.planners import PlanningOutcome, plan
 from flycrane.planning.result import PlanningProgress
+from missions.autopilots.ardupilot import team_parameters
 from missions.export.formats import mission_files
 from missions.export.mission_mcap import LogInputs, write_mcap
 from missions.export.parameter_file import parameter_file_text
+from missions.export.trajectory_file import trajectory_text
+from missions.geodesy import geodetic_from_enu
+from missions.position_error import position_error_model
 from missions.task.build import BuiltMissions, MissionFailure, build
 from missions.task.directory import (
     MCAP_FILE,
@@ -123,10 +127,25 @@ def _write(
     task, problem = resolved.task, resolved.problem
     options, system = task.mission, problem.system
     directory.write_tracks(built.tracks)
-    parameters = built.flight.settings.parameters()
-    parm = parameter_file_text(parameters, built.flight.settings.reasons(), PARM_HEADER)
+    settings = built.flight.settings
+    team, why = team_parameters(position_error_model(options.position_error).height_source)
+    parameters = {**settings.parameters(), **team}
+    parm = parameter_file_text(parameters, {**settings.reasons(), **why}, PARM_HEADER)
+    trajectory = built.trajectory
+    homes = geodetic_from_enu(trajectory.homes, options.origin)
     for mission in built.missions:
+        k = mission.drone - 1
         files = {**mission_files(mission, options.max_drone_speed), "parm": parm}
+        files["trajectory.csv"] = trajectory_text(
+            mission.drone,
+            trajectory.time,
+            trajectory.position[:, k],
+            trajectory.velocity[:, k],
+            trajectory.acceleration[:, k],
+            (float(homes[0][k]), float(homes[1][k]), float(homes[2][k])),
+            task.name,
+            trajectory.set_down_start,
+        )
         for suffix, text in files.items():
             directory.write_text(mission_file(mission.drone, suffix), text)
     start = options.start_time_utc or datetime.now(UTC)

@@ -24,15 +24,19 @@ MOTION_STEP_S = 0.01
 PROGRESS_WINDOW = 250
 
 
-def forward_progress(planned: NDArray[np.float64], flown: NDArray[np.float64]) -> NDArray[np.int64]:
+def forward_progress(
+    planned: NDArray[np.float64], flown: NDArray[np.float64], backward: bool = False
+) -> NDArray[np.int64]:
     """Index into ``planned`` (M, D) nearest each ``flown`` (N, D) row, searched forward from
     the previous match within :data:`PROGRESS_WINDOW` samples (a path may cross itself, and
-    a formation pass the same place twice)."""
+    a formation pass the same place twice); with ``backward``, as far back too (a flight
+    that may go back along its path)."""
     index = np.zeros(len(flown), dtype=np.int64)
     last = 0
     for n, point in enumerate(flown):
+        begin = max(last - PROGRESS_WINDOW, 0) if backward else last
         stop = min(last + PROGRESS_WINDOW, len(planned))
-        last += int(np.argmin(np.linalg.norm(planned[last:stop] - point, axis=-1)))
+        last = begin + int(np.argmin(np.linalg.norm(planned[begin:stop] - point, axis=-1)))
         index[n] = last
     return index
 

@@ -74,11 +74,35 @@ def segment_accelerations(
     return np.diff(padded, axis=0) / window.reshape((-1,) + (1,) * (speeds.ndim - 1))
 
 
+def corner_speeds(drones: NDArray[np.float64], acceleration: float) -> NDArray[np.float64]:
+    """Path speed caps (K-1,) that keep every drone's turn at a corner of its track within
+    ``acceleration``: turning by theta between two segments changes the velocity by
+    2 v sin(theta / 2) over the half-segments around the corner (mean length l), so
+    2 g V^2 sin(theta / 2) <= a l, with g the drone's speed per unit path speed."""
+    steps = np.diff(drones, axis=0)  # (K-1, 3, 3)
+    lengths = np.linalg.norm(steps, axis=-1)  # (K-1, 3)
+    ds = np.maximum(lengths.max(axis=1), 1e-12)
+    g = lengths / ds[:, None]
+    unit = steps / np.maximum(lengths, 1e-12)[..., None]
+    cosine = np.clip(np.einsum("kja,kja->kj", unit[:-1], unit[1:]), -1.0, 1.0)
+    half_turn = np.sqrt((1.0 - cosine) / 2.0)  # sin(theta / 2)
+    mean = (lengths[:-1] + lengths[1:]) / 2
+    need = 2.0 * np.maximum(g[:-1], g[1:]) * half_turn  # per drone and corner
+    ok = need > 1e-12
+    cap = np.where(ok, np.sqrt(acceleration * mean / np.where(ok, need, 1.0)), np.inf)
+    corner = cap.min(axis=1)  # (K-2,) the slowest drone's
+    caps = np.full(len(ds), np.inf)
+    caps[:-1] = np.minimum(caps[:-1], corner)
+    caps[1:] = np.minimum(caps[1:], corner)
+    return caps
+
+
 def time_law(
     drones: NDArray[np.float64],
     rotations: NDArray[np.float64],
     options: MissionOptions,
     max_sweeps: int = 200,
+    corners: bool = False,
 ) -> NDArray[np.float64]:
     """Sample times (K,) of the time-optimal law along a dense track (module docstring).
 
@@ -86,6 +110,9 @@ def time_law(
     g_jk V_k). Speeds start at their velocity limits and are lowered by forward and backward
     sweeps until every drone's speed change between neighbouring segments (and from and to
     rest at the ends) fits the acceleration limit over the two half-segments it spans.
+    With ``corners``, the limit also holds for the turns at the track's corners
+    (:func:`corner_speeds`): a drone flown on its velocity and acceleration, rather than on
+    waypoints an autopilot rounds, must slow down there.
     """
     steps = np.linalg.norm(np.diff(drones, axis=0), axis=-1)  # (K-1, 3) [m]
     ds = np.maximum(steps.max(axis=1), 1e-12)  # path length: the fastest drone's travel
@@ -96,6 +123,8 @@ def time_law(
         options.max_drone_speed / np.maximum(g.max(axis=1), 1e-12),
         options.max_angular_rate / np.maximum(w, 1e-12),
     )
+    if corners:
+        speed = np.minimum(speed, corner_speeds(drones, a))
     _lower_speeds(g, ds, speed, a, max_sweeps)
     return np.concatenate([[0.0], np.cumsum(ds / speed)])
 

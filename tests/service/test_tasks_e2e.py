@@ -62,7 +62,7 @@ def test_rescue_is_planned_and_every_artifact_is_served(done, tmp_path):
     } | {
         f"drone{k}.{ext}"
         for k in (1, 2, 3)
-        for ext in ("waypoints", "plan", "mission.json", "parm")
+        for ext in ("waypoints", "plan", "mission.json", "parm", "trajectory.csv")
     }
     assert names == expected
     for k in (1, 2, 3):

@@ -8,7 +8,7 @@ import dataclasses
 import pytest
 
 from flycrane.errors import InputError
-from missions.autopilots.ardupilot import ArduCopterSettings
+from missions.autopilots.ardupilot import ArduCopterSettings, team_parameters
 from missions.mavlink.errors import ParameterError
 from missions.mavlink.messages import dialect, param_request_read
 from missions.mavlink.params import check_parameters, read_parameter, set_parameters
@@ -22,12 +22,13 @@ from tests.missions.loopback import HOME
 DEFAULTS = {"WPNAV_SPEED": 1000.0, "WPNAV_SPEED_UP": 250.0, "WPNAV_SPEED_DN": 150.0,
             "WPNAV_ACCEL": 250.0, "WPNAV_ACCEL_Z": 100.0, "WPNAV_JERK": 1.0, "PSC_POSXY_P": 1.0,
             "PSC_VELXY_P": 2.0, "PSC_POSZ_P": 1.0, "PSC_VELZ_P": 5.0,
-            "WP_YAW_BEHAVIOR": 2.0}  # fmt: skip
+            "WP_YAW_BEHAVIOR": 2.0, "GUID_TIMEOUT": 3.0, "FS_GCS_ENABLE": 0.0,
+            "EK3_SRC1_POSZ": 1.0}  # fmt: skip
 
 
 def test_every_parameter_a_plan_sets_is_there_with_arducopters_default(spawn_mock, fast_policy):
     _, address = spawn_mock()
-    plan = ArduCopterSettings().parameters()
+    plan = {**ArduCopterSettings().parameters(), **team_parameters("gnss")[0]}
     assert set(plan) == set(DEFAULTS)
     with VehicleLink(address, fast_policy) as link:
         link.wait_heartbeat()

@@ -16,69 +16,16 @@ most 0.05 s, inter-drone distance error p95 at most 0.08 m.
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from flycrane.planning.planners import PlannerOptions
 from missions.flight_report.planned_flight import PlannedFlight
-from missions.options import MissionOptions
 from missions.position_error import PRESETS
-from missions.sitl.netns import namespaces_available
-from missions.sitl.process import alive
-from missions.sitl.settings import SitlSettings
-from missions.task.pipeline import run_task
-from missions.task.spec import TaskSpec
+from tests.missions.sitl.flights import SITL_MARKS, fly
 
-SETTINGS = SitlSettings()
-NAMESPACES = namespaces_available()
-pytestmark = [
-    pytest.mark.sitl,
-    pytest.mark.skipif(
-        not SETTINGS.binary.is_file(),
-        reason=f"no ArduCopter SITL at {SETTINGS.binary} (set FLYCRANE_SITL_BINARY)",
-    ),
-    pytest.mark.skipif(NAMESPACES is not None, reason=f"no private network: {NAMESPACES}"),
-]
-#: A flight takes about 10 s of wall time at x10; the bound is for a machine under load.
-FLIGHT_TIMEOUT_S = 600
-
-
-def plan(scene: str, seed: int, out: Path) -> Path:
-    task = TaskSpec(
-        scene=scene,
-        planner=PlannerOptions(seed=seed, time_budget=120),
-        mission=MissionOptions(position_error="sitl"),
-    )
-    outcome = run_task(task, out)
-    assert outcome.status == "done", outcome.reason
-    return out
-
-
-@pytest.fixture(scope="module")
-def rescue(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return plan("rescue", 0, tmp_path_factory.mktemp("rescue"))
-
-
-@pytest.fixture(scope="module")
-def puzzle(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return plan("puzzle", 2, tmp_path_factory.mktemp("puzzle"))
-
-
-def fly(task_dir: Path, out: Path, *extra: str) -> dict:
-    """Fly on SITL, check every simulator is gone, return report.json."""
-    command = [sys.executable, "-m", "flycrane.cli", "fly-sitl", str(task_dir), "--out", str(out),
-               *extra]  # fmt: skip
-    done = subprocess.run(command, capture_output=True, text=True, timeout=FLIGHT_TIMEOUT_S)
-    pids = json.loads((out / "sitl" / "pids.json").read_text())
-    assert not [pid for pid in pids if alive(pid)], "a simulator outlived its flight"
-    assert done.returncode in (0, 1), done.stderr[-3000:]  # 0 safe, 1 unsafe
-    report = json.loads((out / "report.json").read_text())
-    assert (done.returncode == 0) == report["verdict"]["safe"]
-    return report
+pytestmark = SITL_MARKS
 
 
 def assert_released_at_the_start(task_dir: Path, report: dict) -> None:

@@ -21,7 +21,7 @@ from flycrane.model.kinematics import drone_positions_from_configuration
 from flycrane.planning.planners import PlannerOptions
 from flycrane.planning.validity import InvalidConfigurationError
 from flycrane.world.scene import load_scene
-from missions.autopilots.ardupilot import ArduCopterSettings
+from missions.autopilots.ardupilot import ArduCopterSettings, team_parameters
 from missions.autopilots.spline import SpeedLimits
 from missions.export.formats import mission_from_json
 from missions.export.items import MavCmd
@@ -47,7 +47,7 @@ def test_default_rescue_task_is_done_with_every_artifact(rescue):
     expected = {"path.json", "tracks.json", "mission.mcap", "profile.png", "summary.json"}
     expected |= {"task.json"}
     expected |= {f"drone{j}.{kind}" for j in (1, 2, 3) for kind in
-                 ("waypoints", "plan", "mission.json", "parm")}  # fmt: skip
+                 ("waypoints", "plan", "mission.json", "parm", "trajectory.csv")}  # fmt: skip
     assert set(outcome.artifacts.values()) == expected
     for name in expected:
         assert (out / name).stat().st_size > 0, name
@@ -130,7 +130,8 @@ def test_rescue_parameter_files_read_with_pymavlink_say_what_the_plan_assumes(re
         read = mavparm.MAVParmDict()
         read.load(str(out / f"drone{j}.parm"), use_excludes=False)
         expected = ArduCopterSettings.for_acceleration(MissionOptions().autopilot_acceleration)
-        assert dict(read) == pytest.approx(expected.parameters())
+        team, _ = team_parameters("gnss")  # the default model's (rtk) height source
+        assert dict(read) == pytest.approx({**expected.parameters(), **team})
         assert "BARO_GND_TEMP" not in read  # never changed on a powered vehicle
 
 

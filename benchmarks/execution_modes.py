@@ -1,0 +1,182 @@
+"""Fly the same missions in every execution mode on three ArduCopter SITL autopilots, and
+faulted flights, and print how in step and how safe each was.
+
+    .venv/bin/python benchmarks/execution_modes.py --scenes rescue puzzle --seeds 0-9 \\
+        --modes missions stream onboard --out execution-modes
+    .venv/bin/python benchmarks/execution_modes.py --scenes rescue --seeds 0-11 \\
+        --faults 1 --modes stream --out execution-faults
+
+Each (scene, seed) is planned once by ``flycrane plan`` (the default planner, the ``sitl``
+position-error model), then flown by ``flycrane fly-sitl --mode MODE`` (its own private
+network namespace, simulators stopped by PID). With ``--faults K``, each flight gets one
+fault drawn from a generator seeded by the task's seed: a kind among ``gps``, ``link``,
+``mode`` and ``motor`` (0.8 of one motor's thrust), a drone, and a plan time between 20 %
+and 70 % of the plan. Figures are the flight report's (true positions from SIM_STATE,
+estimates from the autopilots, one common clock); BENCHMARKS.md ("Execution in step")
+records the runs. Results are kept in ``--out``: a rerun flies only what is missing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+FAULT_KINDS = ("gps", "link", "mode", "motor")
+
+
+def seeds(text: str) -> list[int]:
+    """``0-9`` or ``3,5,8``."""
+    if "-" in text:
+        first, last = (int(x) for x in text.split("-"))
+        return list(range(first, last + 1))
+    return [int(x) for x in text.split(",")]
+
+
+def flycrane(*args: str) -> subprocess.CompletedProcess:
+    command = [sys.executable, "-m", "flycrane.cli", *args]
+    return subprocess.run(command, capture_output=True, text=True, timeout=1800)
+
+
+def plan(scene: str, seed: int, out: Path) -> dict:
+    """The task's summary, planned once into ``out``."""
+    summary_file = out / "summary.json"
+    if not summary_file.exists():
+        out.mkdir(parents=True, exist_ok=True)
+        task = {"scene": scene, "planner": {"seed": seed, "time_budget": 120},
+                "mission": {"position_error": "sitl"}}  # fmt: skip
+        (out / "task.in.json").write_text(json.dumps(task))
+        flycrane("plan", str(out / "task.in.json"), "--out", str(out))
+    return json.loads(summary_file.read_text())
+
+
+def fault_of(seed: int, duration: float) -> str:
+    """One fault for a flight, drawn from ``seed`` (module docstring)."""
+    draw = random.Random(seed)
+    kind, drone = draw.choice(FAULT_KINDS), draw.randint(1, 3)
+    at = round(draw.uniform(0.2, 0.7) * duration, 1)
+    return f"{kind}:{drone}:{at}" + (":0.8" if kind == "motor" else "")
+
+
+def fly(task_dir: Path, out: Path, mode: str, speedup: float, fault: str | None) -> dict:
+    """One flight's figures (kept in ``out/result.json``)."""
+    result_file = out / "result.json"
+    if result_file.exists():
+        return json.loads(result_file.read_text())
+    extra = ["--fault", fault] if fault else []
+    done = flycrane("fly-sitl", str(task_dir), "--out", str(out), "--mode", mode,
+                    "--speedup", str(speedup), *extra)  # fmt: skip
+    result: dict = {"mode": mode, "fault": fault, "status": done.returncode}
+    report_file = out / "report.json"
+    if done.returncode == 3:
+        result["refused"] = done.stdout.strip()[-300:]
+    elif not report_file.exists():
+        result["error"] = done.stderr.strip()[-300:]
+    else:
+        report = json.loads(report_file.read_text())
+        true, estimated = report["true"], report["estimated"]
+        result |= {
+            "safe": report["verdict"]["safe"],
+            "reasons": report["verdict"]["reasons"],
+            "pair_true_p95": true["pair_error_common_p95"],
+            "pair_true_max": true["pair_error_common_max"],
+            "pair_estimated_p95": estimated["pair_error_common_p95"],
+            "tracking_estimated_p95": max(estimated["error_in_time_p95"]),
+            "clearance_true": true["least_clearance"],
+            "clearance_bodies": true["least_clearance_bodies"],
+            "duration_ratio": report["timing"]["flown_duration"] / report["planned_duration"],
+            "start_spread": report["timing"]["start_spread"],
+            "progress_spread_max": report["timing"]["progress_spread_max"],
+            "stop": report["stop"],
+        }
+    out.mkdir(parents=True, exist_ok=True)
+    result_file.write_text(json.dumps(result))
+    return result
+
+
+def spread(values: list[float], unit: float = 1.0, digits: int = 1) -> str:
+    """``median (worst)`` of ``values`` in ``unit``."""
+    if not values:
+        return "-"
+    scaled = [v / unit for v in values]
+    return f"{statistics.median(scaled):.{digits}f} ({max(scaled):.{digits}f})"
+
+
+def table(results: list[dict]) -> None:
+    """Per scene and mode: flights, unsafe, refused, and the figures' median (worst)."""
+    print(
+        "scene mode: flights unsafe refused errors | pair true p95 cm | pair est p95 cm | "
+        "track est p95 cm | duration % | start ms | progress max s | clearance cm min (med)"
+    )
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for r in results:
+        groups.setdefault((r["scene"], r["mode"]), []).append(r)
+    for (scene, mode), rows in sorted(groups.items()):
+        flown = [r for r in rows if "safe" in r]
+        clearances = [r["clearance_true"] * 100 for r in flown]
+        print(
+            f"{scene} {mode}: {len(rows)} {sum(not r['safe'] for r in flown)} "
+            f"{sum('refused' in r for r in rows)} {sum('error' in r for r in rows)} | "
+            f"{spread([r['pair_true_p95'] for r in flown], 0.01)} | "
+            f"{spread([r['pair_estimated_p95'] for r in flown], 0.01)} | "
+            f"{spread([r['tracking_estimated_p95'] for r in flown], 0.01)} | "
+            f"{spread([abs(r['duration_ratio'] - 1) for r in flown], 0.01)} | "
+            f"{spread([r['start_spread'] for r in flown], 0.001, 0)} | "
+            f"{spread([r['progress_spread_max'] for r in flown], 1.0, 2)} | "
+            + (f"{min(clearances):.1f} ({statistics.median(clearances):.1f})" if flown else "-")
+        )
+    faulted = [r for r in results if r.get("fault") and "safe" in r]
+    if faulted:
+        print("\nfault: safe | detected after s | healthy drones at rest after s | stop")
+        for r in faulted:
+            stop = r["stop"]
+            if stop is None:
+                print(f"{r['scene']} {r['seed']} {r['mode']} {r['fault']}: "
+                      f"{'safe' if r['safe'] else 'UNSAFE'} | no team stop")  # fmt: skip
+                continue
+            faulty = int(r["fault"].split(":")[1]) - 1
+            healthy = [s for k, s in enumerate(stop["at_rest_after"]) if k != faulty]
+            detected = stop["detected_after"]
+            print(
+                f"{r['scene']} {r['seed']} {r['mode']} {r['fault']}: "
+                f"{'safe' if r['safe'] else 'UNSAFE ' + ' '.join(r['reasons'])[:120]} | "
+                f"{'-' if detected is None else f'{detected:.2f}'} | {max(healthy):.2f}"
+            )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenes", nargs="+", default=["rescue", "puzzle"])
+    parser.add_argument("--seeds", type=seeds, default=seeds("0-9"))
+    parser.add_argument("--modes", nargs="+", default=["missions", "stream", "onboard"])
+    parser.add_argument("--faults", type=int, default=0, help="faults per flight (0 or 1)")
+    parser.add_argument("--speedup", type=float, default=5.0)
+    parser.add_argument("--out", type=Path, default=Path("execution-modes"))
+    args = parser.parse_args()
+    results = []
+    for scene in args.scenes:
+        for seed in args.seeds:
+            task_dir = args.out / f"{scene}-{seed}" / "plan"
+            summary = plan(scene, seed, task_dir)
+            if summary["status"] != "done":
+                print(f"{scene} {seed}: no mission: {summary['reason'][:160]}", flush=True)
+                continue
+            duration = summary["mission"]["duration"]
+            fault = fault_of(seed, duration) if args.faults else None
+            for mode in args.modes:
+                name = mode + (f"-{fault.replace(':', '_')}" if fault else "")
+                out = args.out / f"{scene}-{seed}" / name
+                result = fly(task_dir, out, mode, args.speedup, fault)
+                results.append({"scene": scene, "seed": seed} | result)
+                print(f"{scene} {seed} {mode} {fault or ''}: {json.dumps(result)[:300]}",
+                      flush=True)  # fmt: skip
+    print()
+    table(results)
+
+
+if __name__ == "__main__":
+    main()

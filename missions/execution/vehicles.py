@@ -1,0 +1,168 @@
+"""What the ground knows of each vehicle while it plays the plan: its clock, its frame and
+its latest state, kept up to date by its link's reader thread.
+
+- **Clock.** A vehicle stamps its messages with its boot time; SYSTEM_TIME pairs that with
+  UNIX time (GPS time on a real vehicle; on SITL the simulation's, from one
+  ``--start-time``). Common time = boot time + that offset, the one time base of the three
+  (:mod:`missions.execution.group_clock`). The ground reads a vehicle's present from its
+  recent stamped messages, each carried forward by the ground's clock times the
+  simulation's speed-up: the largest of those (a message only ever arrives late, so the
+  least delayed one says most), at most ``max_extrapolation`` past the last message (a
+  simulator that stalls is not run ahead of).
+- **Frame.** Targets go out in the vehicle's local NED frame (from its EKF origin). The
+  trajectory is home-relative (:mod:`missions.trajectory.drone_trajectory`): north and east
+  follow from where the task's ENU frame puts the EKF origin (GPS_GLOBAL_ORIGIN), down from
+  where the vehicle says its home is (HOME_POSITION), as the missions' relative altitudes do.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
+from missions.mavlink.transport import VehicleLink
+from missions.options import GeodeticOrigin
+
+#: How many recent stamped messages set a vehicle's present.
+STAMPS = 40
+#: What the execution reads from each vehicle.
+TELEMETRY = (
+    "SYSTEM_TIME",
+    "HEARTBEAT",
+    "LOCAL_POSITION_NED",
+    "GPS_RAW_INT",
+    "EKF_STATUS_REPORT",
+    "HOME_POSITION",
+    "GPS_GLOBAL_ORIGIN",
+    "MISSION_CURRENT",
+)
+
+
+@dataclass(frozen=True)
+class VehicleFrame:
+    """Where a vehicle's local NED frame lies: its EKF origin in the task's ENU frame
+    (horizontally) and its home's local down coordinate."""
+
+    origin_east: float  #: [m] in the task's ENU frame
+    origin_north: float
+    home_down: float  #: HOME_POSITION z: home's down coordinate in the local frame [m]
+    home_up: float  #: the home's height in the task frame (``home_height``) [m]
+
+    def local_position(self, enu: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Task-frame ENU positions (..., 3) in the vehicle's local NED frame."""
+        enu = np.asarray(enu, dtype=float)
+        north = enu[..., 1] - self.origin_north
+        east = enu[..., 0] - self.origin_east
+        down = self.home_down - (enu[..., 2] - self.home_up)
+        return np.stack([north, east, down], axis=-1)
+
+    def task_position(self, ned: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Inverse of :meth:`local_position`."""
+        ned = np.asarray(ned, dtype=float)
+        east = ned[..., 1] + self.origin_east
+        north = ned[..., 0] + self.origin_north
+        up = self.home_down - ned[..., 2] + self.home_up
+        return np.stack([east, north, up], axis=-1)
+
+
+class VehicleState:
+    """One vehicle's clock, frame and latest telemetry (module docstring), fed by its
+    link's reader thread; read from any thread."""
+
+    def __init__(self, link: VehicleLink, speedup: float, max_extrapolation: float) -> None:
+        self.link, self.speedup, self.max_extrapolation = link, speedup, max_extrapolation
+        self._lock = threading.Lock()
+        self.offset: float | None = None  #: common time - boot time [s]
+        #: recent (boot time [s], ground monotonic time of receipt) pairs, newest last
+        self._stamps: deque[tuple[float, float]] = deque(maxlen=STAMPS)
+        self.mode: int | None = None
+        self.system_status: int | None = None
+        self.ekf_flags: int | None = None
+        self.fix_type: int | None = None
+        self.position: tuple[float, NDArray[np.float64]] | None = None  #: (boot s, NED)
+        self.home_down: float | None = None
+        self.origin: tuple[float, float] | None = None  #: EKF origin lat, lon [deg]
+        self.heard: float | None = None  #: ground monotonic time of the last message
+        self.mission_seq: int | None = None  #: the current mission item
+        self.deaf = False  #: the ground no longer hears it (a lost link, injected)
+        link.add_listener(TELEMETRY, self._on)
+
+    def close(self) -> None:
+        self.link.remove_listener(self._on)
+
+    def _on(self, msg: Any) -> None:
+        if self.deaf:
+            return
+        now = time.monotonic()
+        kind = msg.get_type()
+        with self._lock:
+            self.heard = now
+            boot = getattr(msg, "time_boot_ms", None)
+            if boot is not None:
+                self._stamps.append((boot / 1000.0, now))
+            if kind == "SYSTEM_TIME" and msg.time_unix_usec > 0:
+                self.offset = msg.time_unix_usec / 1e6 - msg.time_boot_ms / 1000.0
+            elif kind == "HEARTBEAT":
+                self.mode, self.system_status = msg.custom_mode, msg.system_status
+            elif kind == "LOCAL_POSITION_NED":
+                self.position = (msg.time_boot_ms / 1000.0, np.array([msg.x, msg.y, msg.z]))
+            elif kind == "GPS_RAW_INT":
+                self.fix_type = msg.fix_type
+            elif kind == "EKF_STATUS_REPORT":
+                self.ekf_flags = msg.flags
+            elif kind == "HOME_POSITION":
+                self.home_down = float(msg.z)
+            elif kind == "MISSION_CURRENT":
+                self.mission_seq = msg.seq
+            elif kind == "GPS_GLOBAL_ORIGIN":
+                self.origin = (msg.latitude * DEGREE_UNIT, msg.longitude * DEGREE_UNIT)
+
+    def boot_time(self, now: float | None = None) -> float | None:
+        """The vehicle's boot time [s] at ground monotonic time ``now`` (module
+        docstring)."""
+        with self._lock:
+            if not self._stamps:
+                return None
+            stamps = list(self._stamps)
+        now = time.monotonic() if now is None else now
+        latest = stamps[-1][0] + self.max_extrapolation
+        carried = max(boot + (now - at) * self.speedup for boot, at in stamps)
+        return min(carried, latest)
+
+    def common_time(self, now: float | None = None) -> float | None:
+        boot = self.boot_time(now)
+        return None if boot is None or self.offset is None else boot + self.offset
+
+    def last_heard(self) -> float | None:
+        """Common time of the newest stamped message: when the vehicle was last heard, on
+        its own clock (a pause of the ground's makes every vehicle's older alike)."""
+        with self._lock:
+            if not self._stamps or self.offset is None:
+                return None
+            return self._stamps[-1][0] + self.offset
+
+    def frame(self, origin: GeodeticOrigin, home_up: float) -> VehicleFrame | None:
+        """The vehicle's frame in the task frame ``origin``, once it reported its EKF
+        origin and home."""
+        with self._lock:
+            if self.origin is None or self.home_down is None:
+                return None
+            lat, lon = self.origin
+            home_down = self.home_down
+        east, north, _ = enu_from_geodetic(lat, lon, origin.altitude, origin)
+        return VehicleFrame(float(east), float(north), home_down, home_up)
+
+    def estimate(self) -> tuple[float, NDArray[np.float64]] | None:
+        """(common time, local NED position) of the last position estimate."""
+        with self._lock:
+            if self.position is None or self.offset is None:
+                return None
+            boot, ned = self.position
+            return boot + self.offset, ned.copy()

@@ -1,0 +1,69 @@
+"""What the SITL tests share: the marks that skip them without SITL or a private network,
+planning a task for them, and flying it with ``flycrane fly-sitl`` in a subprocess (every
+simulator checked gone by its PID afterwards)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from flycrane.planning.planners import PlannerOptions
+from missions.options import MissionOptions
+from missions.sitl.netns import namespaces_available
+from missions.sitl.process import alive
+from missions.sitl.settings import SitlSettings
+from missions.task.pipeline import run_task
+from missions.task.spec import TaskSpec
+
+SETTINGS = SitlSettings()
+NAMESPACES = namespaces_available()
+SITL_MARKS = [
+    pytest.mark.sitl,
+    pytest.mark.skipif(
+        not SETTINGS.binary.is_file(),
+        reason=f"no ArduCopter SITL at {SETTINGS.binary} (set FLYCRANE_SITL_BINARY)",
+    ),
+    pytest.mark.skipif(NAMESPACES is not None, reason=f"no private network: {NAMESPACES}"),
+]
+#: A flight takes about 25 s of wall time at x5; the bound is for a machine under load.
+FLIGHT_TIMEOUT_S = 600
+#: The simulators' speed-up in the tests. The ground's pauses count this many times over in
+#: the drones' time: at x10, a 50 ms pause of this machine (2 cores, three simulators and
+#: the ground) is half a second of the drones' time, which starves GUIDED of targets and
+#: reads as a lost link, so x10 judges the load of the machine, not the execution. At x5 it
+#: is a quarter of a second (BENCHMARKS.md "Execution in step").
+SPEEDUP = 5
+
+
+def plan(scene: str, seed: int, out: Path) -> Path:
+    task = TaskSpec(
+        scene=scene,
+        planner=PlannerOptions(seed=seed, time_budget=120),
+        mission=MissionOptions(position_error="sitl"),
+    )
+    outcome = run_task(task, out)
+    assert outcome.status == "done", outcome.reason
+    return out
+
+
+def run_fly_sitl(task_dir: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
+    """``flycrane fly-sitl`` in a subprocess; every simulator checked gone afterwards."""
+    command = [sys.executable, "-m", "flycrane.cli", "fly-sitl", str(task_dir), "--out", str(out),
+               "--speedup", str(SPEEDUP), *extra]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True, timeout=FLIGHT_TIMEOUT_S)
+    pids = json.loads((out / "sitl" / "pids.json").read_text())
+    assert not [pid for pid in pids if alive(pid)], "a simulator outlived its flight"
+    return done
+
+
+def fly(task_dir: Path, out: Path, *extra: str) -> dict:
+    """Fly on SITL and return report.json (the flight was released: safe or not)."""
+    done = run_fly_sitl(task_dir, out, *extra)
+    assert done.returncode in (0, 1), done.stderr[-3000:]  # 0 safe, 1 unsafe
+    report = json.loads((out / "report.json").read_text())
+    assert (done.returncode == 0) == report["verdict"]["safe"]
+    return report

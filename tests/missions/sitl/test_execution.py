@@ -1,0 +1,113 @@
+"""Playing the plan from one clock on three ArduCopter 4.5.7 SITL autopilots: in step, a team
+that stops together under injected faults, an onboard player that keeps the clock through a
+lost link, and the positioning the plan assumes enforced before the release.
+
+Evidence independent of the executors: the simulators' true positions (SIM_STATE) and their
+own clocks (SYSTEM_TIME, one epoch for the three), read from the tlogs by the flight report,
+which rebuilds the load from the three drones and judges it on the real obstacles. The
+thresholds are issue 23's targets where the flights meet them with a margin, and otherwise
+the bounds BENCHMARKS.md reports ("Execution in step") with the targets they miss.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from tests.missions.sitl.flights import SITL_MARKS, fly, run_fly_sitl
+
+pytestmark = SITL_MARKS
+
+
+def assert_in_step(report: dict, duration: float = 0.05) -> None:
+    """The drones flew the plan together on one clock (true positions judged)."""
+    true, estimated = report["true"], report["estimated"]
+    assert report["verdict"]["safe"], report["verdict"]["reasons"]
+    assert true["pair_error_common_p95"] <= 0.05, true["pair_error_common_p95"]
+    assert estimated["pair_error_common_p95"] <= 0.035, estimated["pair_error_common_p95"]
+    assert max(estimated["error_in_time_p95"]) <= 0.05, estimated["error_in_time_p95"]
+    # the drones hold their start 1-2 cm below it in truth before the plan plays (the
+    # `sitl` model's 7 cm planned); the target is 6 cm of 8 cm
+    assert true["least_clearance"] >= 0.045, true["least_clearance_bodies"]
+    assert report["timing"]["start_spread"] <= 0.03
+    assert report["timing"]["progress_spread_p95"] <= 0.1
+    flown, planned = report["timing"]["flown_duration"], report["planned_duration"]
+    assert abs(flown / planned - 1.0) <= duration, (flown, planned)
+
+
+def execution(out: Path) -> dict:
+    return json.loads((out / "execution.json").read_text())
+
+
+def test_the_rescue_streamed_from_one_clock_flies_in_step(rescue: Path, tmp_path: Path):
+    report = fly(rescue, tmp_path, "--mode", "stream")
+    assert_in_step(report)
+    assert report["stop"] is None and execution(tmp_path)["faults"] == []
+
+
+def test_the_puzzle_streamed_from_one_clock_flies_in_step(puzzle: Path, tmp_path: Path):
+    assert_in_step(fly(puzzle, tmp_path, "--mode", "stream"))
+
+
+def test_a_late_drone_slows_the_team_instead_of_stretching_the_formation(
+    rescue: Path, tmp_path: Path
+):
+    """Drone 3 held at its start for 1 s after the others' start: the group clock falls
+    (the plan waits for it) and the formation holds."""
+    report = fly(rescue, tmp_path, "--mode", "stream", "--fault", "late:3:0:1.0")
+    record = execution(tmp_path)
+    assert min(s["rate_end"] for s in record["segments"]) < 0.5  # the team waited
+    assert report["verdict"]["safe"], report["verdict"]["reasons"]
+    assert report["true"]["pair_error_common_max"] <= 0.1
+
+
+@pytest.mark.parametrize("fault", ["gps:2:8", "link:1:6", "mode:3:10"])
+def test_a_fault_stops_the_three_together_and_the_load_stays_safe(
+    rescue: Path, tmp_path: Path, fault: str
+):
+    """One drone's GNSS lost, its link lost, or its mode switched to BRAKE mid-flight: the
+    team stop goes out within a second of the fault (a lost link is only seen by its
+    silence), the two healthy drones are at rest within 1 s of it, and the load is safe
+    through the stop and the hold after it (true positions)."""
+    report = fly(rescue, tmp_path, "--mode", "stream", "--fault", fault)
+    assert report["verdict"]["safe"], report["verdict"]["reasons"]
+    stop = report["stop"]
+    assert stop is not None
+    assert stop["detected_after"] <= 1.0, stop
+    faulty = int(fault.split(":")[1]) - 1
+    healthy = [s for k, s in enumerate(stop["at_rest_after"]) if k != faulty]
+    assert max(healthy) <= 1.0, stop
+
+
+def test_the_onboard_player_keeps_the_team_in_step_through_a_lost_link(
+    rescue: Path, tmp_path: Path
+):
+    """The players on board keep the group clock: drone 1's link lost mid-flight, all
+    three fly on in step to the end, with no team stop."""
+    report = fly(rescue, tmp_path, "--mode", "onboard", "--fault", "link:1:6")
+    assert report["stop"] is None
+    assert [f["kind"] for f in execution(tmp_path)["faults"]] == ["link"]
+    assert report["verdict"]["safe"], report["verdict"]["reasons"]
+    assert report["true"]["pair_error_common_p95"] <= 0.05
+    flown, planned = report["timing"]["flown_duration"], report["planned_duration"]
+    assert abs(flown / planned - 1.0) <= 0.05
+
+
+def test_stock_sensors_fly_safely_with_the_positioning_of_the_plan(rescue: Path, tmp_path: Path):
+    """SITL's sensors as they come (no barometer calibration, gyro drift on): the .parm's
+    GNSS height makes the flight the plan assumes."""
+    report = fly(rescue, tmp_path, "--stock-sensors")
+    assert report["verdict"]["safe"], report["verdict"]["reasons"]
+
+
+def test_stock_sensors_on_barometric_height_are_refused_the_release(rescue: Path, tmp_path: Path):
+    """The same drones left on the barometer (the parameter a user forgot): the check at
+    the hold refuses the release, naming the height source and the drones."""
+    done = run_fly_sitl(rescue, tmp_path, "--stock-sensors", "--parameter", "EK3_SRC1_POSZ=1")
+    assert done.returncode == 3, done.stderr[-3000:]
+    assert "release refused" in done.stdout and "EK3_SRC1_POSZ" in done.stdout
+    flight = json.loads((tmp_path / "flight.json").read_text())
+    assert {r.split(" ")[1] for r in flight["refused"] if "EK3_SRC1_POSZ" in r} == {"1", "2", "3"}
+    assert not (tmp_path / "report.json").exists()
