@@ -82,7 +82,18 @@ def defaults_file(settings: SitlSettings, directory: Path, scripting: bool = Fal
     (:attr:`SitlSettings.gyro_drift`) and, with ``scripting``, Lua scripts (SCR_ENABLE,
     read at boot). A defaults file is read before the barometers are calibrated: the only
     time BARO_GND_TEMP may change (:mod:`missions.autopilots.ardupilot`, "Parameters").
-    The path returned is absolute: SITL reads it from its own working directory."""
+    The path returned is absolute: SITL reads it from its own working directory.
+
+    Raises
+    ------
+    SitlError
+        The configured file cannot be read (it names the setting and the file).
+    """
+    if not settings.defaults_file.is_file():
+        raise SitlError(
+            f"FLYCRANE_SITL_DEFAULTS: no defaults file {settings.defaults_file} (the SITL "
+            "binary's copter.parm by default)"
+        )
     extra = []
     if settings.calibrated_barometers:
         extra.append(f"BARO_GND_TEMP {SITL_BARO_GROUND_TEMPERATURE}")

@@ -5,6 +5,7 @@ simulator checked gone by its PID afterwards)."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -50,12 +51,19 @@ def plan(scene: str, seed: int, out: Path) -> Path:
     return out
 
 
-def run_fly_sitl(task_dir: Path, out: Path, *extra: str) -> subprocess.CompletedProcess:
-    """``flycrane fly-sitl`` in a subprocess; every simulator checked gone afterwards."""
-    command = [sys.executable, "-m", "flycrane.cli", "fly-sitl", str(task_dir), "--out", str(out),
-               "--speedup", str(SPEEDUP), *extra]  # fmt: skip
-    done = subprocess.run(command, capture_output=True, text=True, timeout=FLIGHT_TIMEOUT_S)
-    pids = json.loads((out / "sitl" / "pids.json").read_text())
+def run_fly_sitl(
+    task_dir: Path, out: Path, *extra: str, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess:
+    """``flycrane fly-sitl`` in a subprocess, given paths relative to its working directory
+    as a user types them (SITL runs in directories of its own); every simulator checked
+    gone afterwards."""
+    cwd = Path(os.path.commonpath([task_dir, out]))
+    command = [sys.executable, "-m", "flycrane.cli", "fly-sitl", os.path.relpath(task_dir, cwd),
+               "--out", os.path.relpath(out, cwd), "--speedup", str(SPEEDUP), *extra]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True, timeout=FLIGHT_TIMEOUT_S,
+                          cwd=cwd, env={**os.environ, **(env or {})})  # fmt: skip
+    started = out / "sitl" / "pids.json"  # written once the simulators started
+    pids = json.loads(started.read_text()) if started.exists() else []
     assert not [pid for pid in pids if alive(pid)], "a simulator outlived its flight"
     return done
 

@@ -23,7 +23,7 @@ import pytest
 
 from missions.flight_report.planned_flight import PlannedFlight
 from missions.position_error import PRESETS
-from tests.missions.sitl.flights import SITL_MARKS, fly
+from tests.missions.sitl.flights import SITL_MARKS, fly, run_fly_sitl
 
 pytestmark = SITL_MARKS
 
@@ -92,3 +92,26 @@ def test_a_late_release_and_a_wrong_parameter_are_reported_unsafe(rescue: Path, 
     flight = json.loads((tmp_path / "flight.json").read_text())
     named = {text.split(":")[0] for text in flight["parameter_differences"]}
     assert named == {"drone1", "drone2", "drone3"}
+
+
+def test_a_simulator_that_exits_is_reported_with_the_reason_its_console_gives(
+    rescue: Path, tmp_path: Path
+):
+    """Issue 22: a simulator that panicked left the user "connect failed on 3 of 3
+    vehicles"; the command now ends (status 2) quoting the simulator's console. The
+    simulator here is a stand-in that panics as SITL does on a defaults file it cannot
+    load."""
+    panicking = tmp_path / "arducopter"
+    panicking.write_text("#!/bin/sh\necho 'PANIC: Failed to load defaults from x.parm'\nexit 1\n")
+    panicking.chmod(0o755)
+    (tmp_path / "copter.parm").write_text("FRAME_CLASS 1\n")
+    done = run_fly_sitl(rescue, tmp_path / "flight", env={"FLYCRANE_SITL_BINARY": str(panicking)})
+    assert done.returncode == 2, done.stderr[-2000:]
+    assert "SITL instance 0 exited with 1" in done.stderr, done.stderr
+    assert "PANIC: Failed to load defaults" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_missing_defaults_file_names_the_setting(rescue: Path, tmp_path: Path):
+    done = run_fly_sitl(rescue, tmp_path / "flight",
+                        env={"FLYCRANE_SITL_DEFAULTS": str(tmp_path / "none.parm")})  # fmt: skip
+    assert done.returncode == 2 and "FLYCRANE_SITL_DEFAULTS" in done.stderr, done.stderr
