@@ -12,7 +12,7 @@ import gc
 import json
 import logging
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from importlib.metadata import entry_points
 from pathlib import Path
 
@@ -25,6 +25,7 @@ from flycrane.model.kinematics import as_configurations
 from flycrane.model.statics import evaluate_statics
 from flycrane.model.statics_summary import statics_summary
 from flycrane.model.system_spec import SystemSpec, load_system, save_system
+from flycrane.world.scene import list_scenes, load_scene
 
 #: The configuration the quick start evaluates: hovering 5 m up, level, alphas at 1 rad.
 DEFAULT_CONFIGURATION = (0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
@@ -101,10 +102,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     from flycrane.execution import executor_for
     from flycrane.planning.planners import PlannerOptions
     from flycrane.planning.problem import PlanningProblem
-    from flycrane.world.scene import load_scene
 
     for scene in args.scenes:
-        load_scene(scene)  # unknown names fail here, before any work starts
+        load_scene(scene)  # unknown names and bad files fail here, before any work starts
     base = PlannerOptions(step=args.step) if args.step else PlannerOptions()
     out = Path(args.out)
     total = len(args.scenes) * len(args.planners) * args.runs
@@ -122,11 +122,13 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             )
     records.sort(key=lambda r: (args.scenes.index(r.scene), args.planners.index(r.planner), r.seed))
     rows = summarize(records)
+    # the results first: a figure that fails must not lose what the runs computed
     write_results(records, rows, out)
-    margins = {}
-    for scene in args.scenes:
+    print(format_table(rows), flush=True)
+    margins, figures = {}, {}
+    for scene, label in zip(args.scenes, scene_labels(args.scenes), strict=True):
         problem = PlanningProblem.named(scene)
-        groups = {
+        figures[label] = {
             planner: [
                 path_profile(problem.system, problem.space, np.array(r.path))
                 for r in records
@@ -134,18 +136,46 @@ def _cmd_bench(args: argparse.Namespace) -> int:
             ]
             for planner in args.planners
         }
-        for planner, profiles in groups.items():
-            margins[scene, planner] = [least_margins(p, problem.system) for p in profiles]
-        plot_profile_bands(
-            groups,
-            problem.system,
-            out / f"fig6_{scene}.png",
-            title=f"{scene}: tension and thrust ranges along the paths",
-        )
-    print(format_table(rows))
-    print(format_margins(margins))
+        for planner, profiles in figures[label].items():
+            margins[label, planner] = [least_margins(p, problem.system) for p in profiles]
+    print(format_margins(margins), flush=True)
+    failed = 0
+    for scene, label in zip(args.scenes, scene_labels(args.scenes), strict=True):
+        figure = out / f"fig6_{label}.png"
+        try:
+            plot_profile_bands(
+                figures[label],
+                PlanningProblem.named(scene).system,
+                figure,
+                title=f"{label}: tension and thrust ranges along the paths",
+            )
+        except (OSError, ValueError) as error:
+            failed += 1
+            print(f"bench: {figure} not written: {error}", file=sys.stderr)
     print(f"results in {out}/ (runs.csv, summary.json, fig6_<scene>.png)")
-    return 0
+    return 1 if failed else 0
+
+
+def scene_labels(scenes: Sequence[str]) -> list[str]:
+    """A file-name-safe label per scene: a shipped scene's name, a scene file's stem (with
+    its position where two share one)."""
+    stems = [Path(scene).stem for scene in scenes]
+    return [stem if stems.count(stem) == 1 else f"{stem}-{k + 1}" for k, stem in enumerate(stems)]
+
+
+def _positive(kind: type[int] | type[float]) -> Callable[[str], float]:
+    """An argparse type: a number of ``kind`` above 0."""
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"must be above 0, got {text}")
+        return value
+
+    return parse
 
 
 def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
@@ -180,8 +210,21 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     system.add_argument("--write", metavar="FILE", help="write it as .toml or .json")
     system.set_defaults(handler=_cmd_system)
 
-    bench = sub.add_parser("bench", help="Table I and Fig. 6: planners over scenes and seeds")
-    bench.add_argument("--scenes", nargs="+", default=["rescue", "puzzle"])
+    bench = sub.add_parser(
+        "bench",
+        help="Table I and Fig. 6: planners over scenes and seeds",
+        description="Plan every scene with every planner for seeds 0..RUNS-1 (in parallel "
+        "processes, or on a Dask cluster); write runs.csv, summary.json and a Fig. 6 plot "
+        "per scene to --out, and print Table I and the paths' least margins.",
+    )
+    bench.add_argument(
+        "--scenes",
+        nargs="+",
+        default=["rescue", "puzzle"],
+        metavar="SCENE",
+        help=f"shipped scenes ({', '.join(list_scenes())}) or scene files (.toml); "
+        "default: rescue puzzle",
+    )
     bench.add_argument(
         "--planners",
         nargs="+",
@@ -189,9 +232,16 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         # planners.Algorithm's values, written out: importing the planners here would load
         # the planning stack for every command
         choices=["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt", "ompl-rrtconnect"],
+        metavar="PLANNER",
+        help="trrt (the paper's T-RRT), rrt, bitrrt (ours), and OMPL's ompl-trrt, ompl-rrt, "
+        "ompl-rrtconnect; default: trrt rrt ompl-trrt ompl-rrt (the paper's Table I)",
     )
-    bench.add_argument("--runs", type=int, default=100, help="seeds per scene and planner")
-    bench.add_argument("--budget", type=float, default=60.0, help="seconds per run")
+    bench.add_argument(
+        "--runs", type=_positive(int), default=100, help="seeds per scene and planner (100)"
+    )
+    bench.add_argument(
+        "--budget", type=_positive(float), default=60.0, help="planner seconds per run (60)"
+    )
     bench.add_argument("--step", type=float, help="extension step (default: planner default)")
     bench.add_argument("--workers", type=int, help="processes (default: all CPUs)")
     bench.add_argument(

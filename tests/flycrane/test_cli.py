@@ -85,3 +85,28 @@ def test_the_command_exits_with_the_status_and_output_of_main():
         text=True,
     )
     assert bad.returncode == 2 and "q.theta" in bad.stderr
+
+
+def test_bench_runs_a_scene_file_given_by_a_relative_path_end_to_end(tmp_path):
+    """``flycrane bench --scenes sites/my_scene.toml`` (issue 22): the table, the margins and
+    a figure named after the file, not a crash after every seed was computed."""
+    from flycrane.world.scene import scene_path
+
+    (tmp_path / "sites").mkdir()
+    (tmp_path / "sites" / "my_scene.toml").write_text(scene_path("rescue").read_text())
+    command = [sys.executable, "-m", "flycrane.cli", "bench", "--scenes", "sites/my_scene.toml",
+               "--planners", "trrt", "--runs", "1", "--budget", "30", "--workers", "1",
+               "--out", "results"]  # fmt: skip
+    done = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "sites/my_scene.toml" in done.stdout and "least" in done.stdout.lower()
+    assert (tmp_path / "results" / "fig6_my_scene.png").stat().st_size > 0
+    assert (tmp_path / "results" / "runs.csv").read_text().count("\n") == 2
+
+
+def test_bench_help_names_the_scenes_and_the_planners(capsys):
+    with pytest.raises(SystemExit):
+        main(["bench", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "rescue" in text and "puzzle_first" in text and "scene files" in text
+    assert "bitrrt" in text and "ompl-rrtconnect" in text
