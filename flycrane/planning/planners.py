@@ -44,10 +44,11 @@ class PlannerOptions(BaseModel):
     # Finite numbers only; seeds and counts are integers, not booleans or strings.
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
-    algorithm: Algorithm = Field(
-        "bitrrt",
-        description="bitrrt (default; trrt in scenes with triangle meshes, which bitrrt "
-        "does not check), trrt (the paper's T-RRT), rrt, or OMPL's peers",
+    algorithm: Algorithm | None = Field(
+        None,
+        description="bitrrt, trrt (the paper's T-RRT), rrt, or OMPL's peers; None (the "
+        "default): the scene's default, bitrrt, or trrt in scenes with triangle meshes, "
+        "which bitrrt does not check",
     )
     seed: Seed = Field(0, description="random seed: same seed, same path")
     time_budget: float = Field(60.0, gt=0, le=86_400, description="planning time limit [s]")
@@ -85,27 +86,29 @@ class PlannerOptions(BaseModel):
             if name in self.model_fields_set
             and getattr(self, name) != type(self).model_fields[name].default
         ]
-        if self.algorithm == "bitrrt" and unused:
+        if self.algorithm in (None, "bitrrt") and unused:
             raise ValueError(
-                f"{', '.join(unused)}: options of trrt and rrt; bitrrt grows two trees "
-                "and runs its transition test on log c (flycrane/planning/algorithms/bitrrt.py)"
+                f"{', '.join(unused)}: options of trrt and rrt (name the algorithm); bitrrt, "
+                "the default, grows two trees and runs its transition test on log c "
+                "(flycrane/planning/algorithms/bitrrt.py)"
             )
         return self
 
     def algorithm_for(self, has_meshes: bool) -> Algorithm:
         """The planner that runs in a scene with or without triangle meshes: bitrrt checks
-        primitive shapes only, so the default falls back to trrt (fcl checks meshes), and
-        bitrrt asked for by name is refused.
+        primitive shapes only, so the default (``algorithm`` None) is trrt there (fcl checks
+        meshes), and bitrrt asked for by name is refused. The choice is the data's, not
+        whether a field was set: a stored task means what was sent.
 
         Raises
         ------
         MeshScene
-            bitrrt set explicitly and the scene has meshes.
+            bitrrt asked for and the scene has meshes.
         """
+        if self.algorithm is None:
+            return "trrt" if has_meshes else "bitrrt"
         if self.algorithm == "bitrrt" and has_meshes:
-            if "algorithm" in self.model_fields_set:
-                raise MeshScene()
-            return "trrt"
+            raise MeshScene()
         return self.algorithm
 
     def polishes(self, algorithm: Algorithm) -> bool:
