@@ -27,6 +27,15 @@ class GeodeticOrigin(BaseModel):
     altitude: float = Field(488.0, ge=-500, le=9000, strict=True, description="[m] AMSL of z = 0")
 
 
+#: The longest mission [s]: ten minutes, about what a multirotor carrying its share of a
+#: load flies on one battery. It bounds the mission work of a task in memory (the mission
+#: model samples every 10 ms, the checks every ``check_resolution``, the files store what
+#: those samples show; BENCHMARKS.md "Bounded work"); ``planner.time_budget`` bounds it in
+#: time. A task that cannot fit is refused before it is planned (its drones' straight-line
+#: travel) and failed before its missions are built (its path).
+MAX_MISSION_DURATION_S = 600.0
+
+
 class MissionOptions(BaseModel):
     """How a planned path becomes three drone missions.
 

@@ -16,6 +16,8 @@ the final status (so a task reads ``done`` only once its files are there).
 
 from __future__ import annotations
 
+import ctypes
+import gc
 import logging
 import math
 import tempfile
@@ -87,16 +89,30 @@ def run_job(spec: JobSpec) -> JobOutcome:
         # reschedules a lost worker's tasks) runs it again. Not retried: it may be what
         # killed the worker.
         return _finish(store, spec, TaskStatus.FAILED, None, WORKER_DIED)
-    if spec.task_dir is not None:
-        return _run(spec, store, Path(spec.task_dir))
-    with tempfile.TemporaryDirectory(prefix=f"flycrane-{spec.task_id}-") as scratch:
-        outcome = _run(spec, store, Path(scratch))
-        files = {
-            path.relative_to(scratch).as_posix(): path.read_bytes()
-            for path in sorted(Path(scratch).rglob("*"))
-            if path.is_file()
-        }
-    return replace(outcome, files=files)
+    try:
+        if spec.task_dir is not None:
+            return _run(spec, store, Path(spec.task_dir))
+        with tempfile.TemporaryDirectory(prefix=f"flycrane-{spec.task_id}-") as scratch:
+            outcome = _run(spec, store, Path(scratch))
+            files = {
+                path.relative_to(scratch).as_posix(): path.read_bytes()
+                for path in sorted(Path(scratch).rglob("*"))
+                if path.is_file()
+            }
+        return replace(outcome, files=files)
+    finally:
+        store.engine.dispose()
+        _give_back_memory()
+
+
+def _give_back_memory() -> None:
+    """Return what a finished job freed to the system: the C allocator keeps freed heap for
+    reuse, so a worker that built a large mission would hold it until its next job."""
+    gc.collect()
+    try:
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc: nothing to trim
+        pass
 
 
 def _finish(

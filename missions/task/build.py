@@ -9,6 +9,8 @@ the reason.
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,6 +21,7 @@ from flycrane.model.kinematics import drone_positions_from_configuration
 from missions.export.builder import HOLD_SEQ, RELEASE_SEQ, build_missions
 from missions.export.items import DroneMission
 from missions.geodesy import geodetic_from_enu
+from missions.options import MAX_MISSION_DURATION_S
 from missions.position_error import position_error_model
 from missions.task.directory import MissionSummary, Release, Tracks
 from missions.task.resolve import ResolvedTask
@@ -26,7 +29,8 @@ from missions.trajectory.annotations import Annotations, annotate
 from missions.trajectory.drone_trajectory import DroneTrajectory
 from missions.trajectory.flight_plan import FlightPlan, plan_flight
 from missions.trajectory.timing_tolerance import timing_tolerance
-from missions.trajectory.tracks import Track, track_from_path
+from missions.trajectory.tracks import Track, least_duration, track_from_path
+from missions.trajectory.waypoints import SafetyCheck
 
 #: Most samples the checks of one mission may take (twice its duration over
 #: ``mission.check_resolution``: the timing tolerance flies the plan for up to twice its
@@ -38,6 +42,54 @@ MAX_CHECK_SAMPLES = 200_000
 class MissionFailure(FlyCraneError):
     """The path cannot be made into missions that keep the load safe; the message says
     why."""
+
+
+class Cancelled(FlyCraneError):
+    """The task was cancelled while its missions were built or written."""
+
+
+@dataclass(frozen=True)
+class PhaseLimits:
+    """What stops the mission phases: a cancel (``should_stop``, None: never) or the end of
+    their time budget (``deadline`` on :func:`time.monotonic`, None: none; ``budget`` [s]
+    for the message)."""
+
+    should_stop: Callable[[], bool] | None = None
+    deadline: float | None = None
+    budget: float = 0.0
+
+    @classmethod
+    def starting_now(cls, should_stop: Callable[[], bool] | None, budget: float) -> PhaseLimits:
+        return cls(should_stop, time.monotonic() + budget, budget)
+
+    def check(self, during: str = "its missions were built") -> None:
+        """Raises :class:`Cancelled` if the task is to stop, :class:`MissionFailure` past
+        the deadline."""
+        if self.should_stop is not None and self.should_stop():
+            raise Cancelled(f"cancelled while {during}")
+        if self.deadline is not None and time.monotonic() > self.deadline:
+            raise MissionFailure(
+                f"it took longer than its time budget, {self.budget:g} s "
+                "(planner.time_budget bounds the planning and, again, the missions' making)"
+            )
+
+    def wrap(self, check: SafetyCheck) -> SafetyCheck:
+        """``check``, asking first."""
+
+        def checked(q: NDArray[np.float64]) -> NDArray[np.bool_]:
+            self.check()
+            return check(q)
+
+        return checked
+
+
+def _check_duration(duration: float, bound: str) -> None:
+    if duration > MAX_MISSION_DURATION_S:
+        raise MissionFailure(
+            f"the path's mission would last {bound + ' ' if bound else ''}{duration:.0f} s, "
+            f"more than the {MAX_MISSION_DURATION_S:.0f} s a mission may last; raise the "
+            "mission's speeds"
+        )
 
 
 @dataclass(frozen=True)
@@ -53,18 +105,31 @@ class BuiltMissions:
     trajectory: DroneTrajectory  #: each drone's time law, for executors that stream it
 
 
-def build(resolved: ResolvedTask, path: NDArray[np.float64]) -> BuiltMissions:
-    """The missions of the planned ``path`` (M, 9).
+def build(
+    resolved: ResolvedTask,
+    path: NDArray[np.float64],
+    limits: PhaseLimits | None = None,
+) -> BuiltMissions:
+    """The missions of the planned ``path`` (M, 9). ``limits`` are checked between the
+    phases and before every safety check of the long ones (the flight plan, the timing
+    tolerance), so that a cancel or the time budget reaches the work wherever it is.
 
     Raises
     ------
     MissionFailure
-        The checks would exceed :data:`MAX_CHECK_SAMPLES`, or no flyable plan keeps the load
-        safe.
+        The mission would last longer than :data:`~missions.options.MAX_MISSION_DURATION_S`
+        or its checks take more than :data:`MAX_CHECK_SAMPLES`, no flyable plan keeps the
+        load safe, or the making went past ``limits``' deadline.
+    Cancelled
+        ``limits.should_stop`` said so.
     """
     task, problem, checkers = resolved.task, resolved.problem, resolved.checkers
     options, system = task.mission, problem.system
+    stop = limits or PhaseLimits()
+    _check_duration(least_duration(drone_positions_from_configuration(system, path), options),
+                    "at least")  # fmt: skip
     dense = track_from_path(system, problem.space, path, options)
+    _check_duration(float(dense.time[-1]), "")
     samples = 2.0 * float(dense.time[-1]) / options.check_resolution
     if samples > MAX_CHECK_SAMPLES:
         raise MissionFailure(
@@ -74,16 +139,20 @@ def build(resolved: ResolvedTask, path: NDArray[np.float64]) -> BuiltMissions:
         )
     set_down = resolved.set_down
     # a set-down may touch its surfaces, nothing else
-    landing = checkers.real.without(set_down.surfaces).is_safe if set_down else None
+    landing = stop.wrap(checkers.real.without(set_down.surfaces).is_safe) if set_down else None
+    stop.check()
     flight = plan_flight(
-        system, dense, checkers.legs.is_safe, options, set_down=set_down, landing=landing
-    )
+        system, dense, stop.wrap(checkers.legs.is_safe), options, set_down=set_down,
+        landing=landing,
+    )  # fmt: skip
     if not flight.ok:
         raise MissionFailure(flight.reason)
+    stop.check()
     track = flight.retimed(dense)
     annotations = annotate(system, flight.time, flight.q)
     missions = build_missions(flight, options)
-    tolerance = timing_tolerance(system, dense, flight, checkers.real.is_safe, options)
+    tolerance = timing_tolerance(system, dense, flight, stop.wrap(checkers.real.is_safe), options)
+    stop.check()
     lat, lon, alt = geodetic_from_enu(flight.drones, options.origin)
     summary = MissionSummary(
         waypoints=len(flight.time),

@@ -26,7 +26,7 @@ from missions.export.parameter_file import parameter_file_text
 from missions.export.trajectory_file import trajectory_text
 from missions.geodesy import geodetic_from_enu
 from missions.position_error import position_error_model
-from missions.task.build import BuiltMissions, MissionFailure, build
+from missions.task.build import BuiltMissions, Cancelled, MissionFailure, PhaseLimits, build
 from missions.task.directory import (
     MCAP_FILE,
     PROFILE_FILE,
@@ -94,10 +94,13 @@ def run_task(
         directory.write_task(resolved.self_contained())
         directory.write_path(planned.path, result.path)
         try:
-            built = build(resolved, planned.path)
+            limits = PhaseLimits.starting_now(should_stop, task.planner.time_budget)
+            built = build(resolved, planned.path, limits)
+            _write(directory, resolved, planned, built, limits)
         except MissionFailure as failure:
             raise _Failed("failed", f"mission generation: {failure}") from None
-        _write(directory, resolved, planned, built)
+        except Cancelled as cancelled:
+            raise _Failed("cancelled", str(cancelled)) from None
     except _Failed as failure:
         failed = TaskOutcome(
             **{
@@ -121,12 +124,29 @@ def run_task(
 
 
 def _write(
-    directory: TaskDirectory, resolved: ResolvedTask, planned: PlanningOutcome, built: BuiltMissions
+    directory: TaskDirectory,
+    resolved: ResolvedTask,
+    planned: PlanningOutcome,
+    built: BuiltMissions,
+    limits: PhaseLimits | None = None,
 ) -> None:
-    """The writing phase: tracks, each drone's mission files, the MCAP log, the plot."""
+    """The writing phase: tracks, each drone's mission files, the MCAP log, the plot;
+    ``limits`` are checked between them.
+
+    Raises
+    ------
+    Cancelled, MissionFailure
+        A cancel, or past the deadline (:class:`~missions.task.build.PhaseLimits`).
+    """
+    given = limits or PhaseLimits()
+
+    def check() -> None:
+        given.check("its files were written")
+
     task, problem = resolved.task, resolved.problem
     options, system = task.mission, problem.system
     directory.write_tracks(built.tracks)
+    check()
     settings = built.flight.settings
     team, why = team_parameters(position_error_model(options.position_error).height_source)
     parameters = {**settings.parameters(), **team}
@@ -148,6 +168,7 @@ def _write(
         )
         for suffix, text in files.items():
             directory.write_text(mission_file(mission.drone, suffix), text)
+    check()
     start = options.start_time_utc or datetime.now(UTC)
     result = planned.result
     write_mcap(
@@ -175,6 +196,7 @@ def _write(
         ),
     )
     directory.record(MCAP_FILE, "mcap")
+    check()
     profile = path_profile(system, problem.space, planned.path)
     plot_path_profile(
         profile,

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from pydantic import ValidationError
 
 from flycrane.errors import FieldProblem, InputError
+from flycrane.model.kinematics import drone_positions_from_configuration
 from flycrane.model.system_spec import SystemSpec, problems_from_validation_error, system_preset
 from flycrane.planning.algorithms.bitrrt import MESH_REASON, MeshScene
 from flycrane.planning.planners import Algorithm
@@ -23,8 +24,10 @@ from flycrane.planning.poses import configuration_from_pose
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import ValidityChecker
 from flycrane.world.scene import SceneSpec, load_scene
+from missions.options import MAX_MISSION_DURATION_S
 from missions.position_error import position_error_model
 from missions.task.spec import PlatformPose, TaskSpec
+from missions.trajectory.tracks import least_duration
 from missions.trajectory.vertical_legs import VerticalLeg, clear_end
 
 
@@ -104,7 +107,8 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
     Raises
     ------
     InputError
-        Unknown preset, or a start/goal of the wrong shape.
+        Unknown preset, a start/goal of the wrong shape, or a mission that could not last
+        less than :data:`~missions.options.MAX_MISSION_DURATION_S` at the task's speed.
     InvalidConfigurationError
         Start or goal infeasible, out of bounds or in collision (``what`` says which).
     """
@@ -149,6 +153,15 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
         planned, leg = clear_end(q, checkers.planning, checkers.real, what, approach)
         ends.append(planned)
         legs.append(leg)
+    drones = drone_positions_from_configuration(problem.system, np.stack(ends))
+    least, speed = least_duration(drones, task.mission), task.mission.max_drone_speed
+    if least > MAX_MISSION_DURATION_S:
+        raise InputError([FieldProblem(
+            "mission.max_drone_speed",
+            f"from start to goal a drone travels at least {least * speed:.0f} m: at "
+            f"{speed:g} m/s the mission would last at least {least:.0f} s, more than the "
+            f"{MAX_MISSION_DURATION_S:.0f} s a mission may last",
+        )])  # fmt: skip
     return ResolvedTask(
         task, problem, algorithm, checkers, ends[0], ends[1], lift_off=legs[0], set_down=legs[1]
     )

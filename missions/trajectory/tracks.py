@@ -50,10 +50,11 @@ class Track:
 
 def samples_at_rate(time: NDArray[np.float64], rate: float) -> NDArray[np.int64]:
     """Indices of the samples of increasing times (K,) that show a track at ``rate`` Hz:
-    the first sample at or after each multiple of 1 / rate, and the last one."""
+    the first sample at or after each multiple of 1 / rate (to a microsecond: times summed
+    in steps are not exact), and the last one."""
     time = np.asarray(time, dtype=float)
     ticks = np.arange(0.0, time[-1] - time[0], 1.0 / rate) + time[0]
-    return np.union1d(np.searchsorted(time, ticks), [len(time) - 1])
+    return np.union1d(np.searchsorted(time, ticks - 1e-6), [len(time) - 1])
 
 
 def rotation_angles(rotations: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -173,6 +174,14 @@ def _lower_speeds(g: NDArray, lengths: NDArray, v: NDArray, a: float, max_sweeps
             settled = settled and abs(v[k] - before[k]) <= 1e-9 * abs(before[k])
         if settled:
             return
+
+
+def least_duration(drones: NDArray[np.float64], options: MissionOptions) -> float:
+    """A lower bound [s] on the time the drones take through positions (K, 3, 3) in turn:
+    the longest drone's straight-line travel at ``max_drone_speed`` (its track between
+    them is no shorter, its speed no higher)."""
+    travel = np.linalg.norm(np.diff(drones, axis=0), axis=-1).sum(axis=0)
+    return float(travel.max(initial=0.0)) / options.max_drone_speed
 
 
 def track_from_path(

@@ -1,0 +1,117 @@
+"""Every phase of a task's mission work is bounded (issue 22, item 4): a task that cannot fit
+the longest mission is refused before it is planned, a path that cannot is failed before
+its missions are built, the making stops at its time budget, and a cancel reaches it.
+(How memory and time grow with the duration up to the bound: benchmarks/mission_bounds.py,
+BENCHMARKS.md "Bounded work".)"""
+
+from __future__ import annotations
+
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flycrane.errors import InputError
+from flycrane.planning.planners import PlannerOptions
+from missions.options import MAX_MISSION_DURATION_S, MissionOptions
+from missions.task.build import Cancelled, MissionFailure, PhaseLimits, build
+from missions.task.pipeline import run_task
+from missions.task.resolve import resolve_task
+from missions.task.spec import TaskSpec
+
+LEVEL = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]  # phi theta sigma alpha1-3
+
+
+def field_task(start_x: float, goal_x: float, speed: float = 0.5) -> TaskSpec:
+    """An open field 18 km long: the platform 3 m up, moved along x."""
+    scene = {
+        "name": "field",
+        "ground": True,
+        "obstacles": [],
+        "bounds": {"position_low": [-9500, -50, 0], "position_high": [9500, 50, 20]},
+        "start": [start_x, 0.0, 3.0, *LEVEL],
+        "goal": [goal_x, 0.0, 3.0, *LEVEL],
+    }
+    return TaskSpec.model_validate(
+        {"scene": scene, "mission": {"max_drone_speed": speed, "position_error": "exact"}}
+    )
+
+
+@pytest.mark.parametrize(("length", "speed"), [(18_000.0, 0.05), (2_000.0, 0.5)])
+def test_a_move_that_cannot_fit_the_longest_mission_is_refused_before_planning(length, speed):
+    """The issue's 20 km at 0.05 m/s (a worker grew to 7.3 GB) and 2 km at 0.5 m/s."""
+    task = field_task(-length / 2, length / 2, speed)
+    with pytest.raises(InputError) as refused:
+        resolve_task(task)
+    (problem,) = refused.value.problems
+    assert problem.field == "mission.max_drone_speed"
+    assert f"{length / speed:.0f} s" in problem.reason  # the drones' straight travel
+    assert f"{MAX_MISSION_DURATION_S:.0f} s a mission may last" in problem.reason
+
+
+def test_a_path_that_cannot_fit_is_failed_before_its_missions_are_built():
+    """Start and goal 10 m apart, the path out 1 km and back: refused by its waypoints,
+    before anything is sampled (a few megabytes at most)."""
+    resolved = resolve_task(field_task(-5.0, 5.0))
+    detour = resolved.start.copy()
+    detour[0] = 1000.0
+    path = np.stack([resolved.start, detour, resolved.goal])
+    tracemalloc.start()
+    try:
+        with pytest.raises(MissionFailure, match=r"would last at least 40\d\d s"):
+            build(resolved, path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 5e6
+
+
+def test_a_move_within_the_longest_mission_is_accepted():
+    resolved = resolve_task(field_task(0.0, 0.9 * MAX_MISSION_DURATION_S * 0.5, 0.5))
+    assert resolved.algorithm == "bitrrt"
+
+
+def test_the_making_stops_at_its_time_budget():
+    """Past the deadline the building fails naming the budget (the service's
+    MAX_TIME_BUDGET=5 did not bound a 2 km mission's 66.8 s of making)."""
+    resolved = resolve_task(field_task(0.0, 10.0))
+    path = np.stack([resolved.start, resolved.goal])
+    late = PhaseLimits(deadline=time.monotonic() - 1.0, budget=5.0)
+    with pytest.raises(MissionFailure, match=r"longer than its time budget, 5 s \(planner"):
+        build(resolved, path, late)
+
+
+def test_a_task_whose_making_runs_out_of_time_fails_with_the_reason(tmp_path, monkeypatch):
+    monkeypatch.setattr(
+        PhaseLimits, "starting_now",
+        classmethod(lambda cls, stop, budget: cls(stop, time.monotonic() - 1.0, budget)),
+    )  # fmt: skip
+    outcome = run_task(field_task(0.0, 10.0), tmp_path)
+    assert outcome.status == "failed"
+    assert outcome.reason.startswith("mission generation: it took longer than its time budget")
+
+
+def test_a_cancel_reaches_the_mission_building(tmp_path: Path):
+    """Cancelled once the planner is done: the task ends ``cancelled`` from inside the
+    building, not after it."""
+    task = TaskSpec(scene="rescue", planner=PlannerOptions(seed=0),
+                    mission=MissionOptions(position_error="sitl"))  # fmt: skip
+    stages: list[str] = []
+    outcome = run_task(
+        task,
+        tmp_path,
+        progress=lambda stage, _: stages.append(stage),
+        should_stop=lambda: "generating" in stages,
+    )
+    assert outcome.status == "cancelled"
+    assert outcome.reason == "cancelled while its missions were built"
+    assert not (tmp_path / "tracks.json").exists()
+
+
+def test_the_building_phases_raise_cancelled_when_asked():
+    resolved = resolve_task(field_task(0.0, 10.0))
+    path = np.stack([resolved.start, resolved.goal])
+    with pytest.raises(Cancelled):
+        build(resolved, path, PhaseLimits(should_stop=lambda: True))
