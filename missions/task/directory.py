@@ -57,6 +57,10 @@ PROFILE_FILE = "profile.png"
 DRONES = (1, 2, 3)
 #: The files of each drone's mission, in the order they are written.
 MISSION_SUFFIXES = ("waypoints", "plan", "mission.json", "parm", "trajectory.csv")
+#: The rate the modelled motions are stored at in tracks.json [Hz]: read by interpolation,
+#: they stay within about a millimetre of the mission model's 100 Hz samples
+#: (BENCHMARKS.md "Bounded work"), at a fifth of the size.
+STORED_MOTION_RATE_HZ = 20.0
 
 Status = Literal["done", "failed", "cancelled"]
 
@@ -179,7 +183,8 @@ class Tracks:
     """tracks.json: the timed waypoints and everything the flight will be judged against.
 
     Waypoint arrays have W rows; the dense plan (``dense_time``, ``dense_configurations``)
-    is the planned path on mission time, sampled as finely as the checks sampled it."""
+    is the planned path on mission time, sampled as finely as the checks sampled it; the
+    modelled motions are stored at :data:`STORED_MOTION_RATE_HZ`."""
 
     time: NDArray[np.float64]  #: (W,) mission time of each waypoint [s from the release]
     configurations: NDArray[np.float64]  #: (W, 9)
@@ -210,8 +215,8 @@ class Tracks:
                 "time": self.dense_time.tolist(),
                 "configurations": self.dense_configurations.tolist(),
             },
-            "motion": self.motion.as_dict(),
-            "vehicle_motion": self.vehicle_motion.as_dict(),
+            "motion": self.motion.decimated(STORED_MOTION_RATE_HZ).as_dict(),
+            "vehicle_motion": self.vehicle_motion.decimated(STORED_MOTION_RATE_HZ).as_dict(),
             "lift_off": self.lift_off.as_dict() if self.lift_off else None,
             "set_down": self.set_down.as_dict() if self.set_down else None,
         }

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from missions.autopilots.chain import ChainFlight
+from missions.trajectory.tracks import samples_at_rate
 
 #: Sampling of a motion [s].
 MOTION_STEP_S = 0.01
@@ -99,6 +100,12 @@ class DroneMotion:
         t = np.arange(0.0, end + MOTION_STEP_S / 2, MOTION_STEP_S)
         at = [f.vehicle_at if vehicles else f.at for f in flights]
         return cls(t, np.stack([f(t) for f in at], axis=1), np.asarray(waypoint_time))
+
+    def decimated(self, rate: float) -> DroneMotion:
+        """The samples that show the motion at ``rate`` Hz (the last one kept): what a
+        reader that interpolates needs (:data:`missions.task.directory.STORED_MOTION_RATE_HZ`)."""
+        keep = samples_at_rate(self.time, rate)
+        return DroneMotion(self.time[keep], self.drones[keep], self.waypoint_time)
 
     def as_dict(self) -> dict[str, list]:
         return {

@@ -13,13 +13,13 @@ import asyncio
 from functools import partial
 
 from fastapi import APIRouter, Query
-from fastapi.responses import FileResponse, JSONResponse, Response
+from fastapi.responses import FileResponse, JSONResponse
 
 from flycrane.errors import FieldProblem, InputError
 from missions.task.resolve import resolve_task
 from missions.task.spec import TaskSpec, require_served_task
 from service import uploads
-from service.artifacts import MEDIA_TYPES, artifact_path, bundle, media_type
+from service.artifacts import MEDIA_TYPES, artifact_path, bundle_file, media_type
 from service.deps import READ, WRITE, BaseUrl, ServiceState, StateDep
 from service.errors import TaskNotFoundError, error_responses
 from service.schemas import TaskAccepted, TaskPage, TaskPublic, UploadCreate, UploadPublic
@@ -136,20 +136,18 @@ def get_artifact(task_id: str, name: str, state: StateDep):
 
 @router.get(
     "/{task_id}/bundle.zip",
-    response_class=Response,
+    response_class=FileResponse,
     dependencies=READ,
     responses={
         200: {"content": {"application/zip": {"schema": {"type": "string", "format": "binary"}}}},
         **error_responses(401, 404, 409, 503),
     },
 )
-def get_bundle(task_id: str, state: StateDep) -> Response:
-    """Every artifact of a task in one zip, with view.html, the viewer page that opens offline."""
-    return Response(
-        bundle(state.jobs, _record(state, task_id)),
-        media_type="application/zip",
-        headers={"Content-Disposition": f'attachment; filename="{task_id}.zip"'},
-    )
+def get_bundle(task_id: str, state: StateDep) -> FileResponse:
+    """Every artifact of a task in one zip, with view.html, the viewer page that opens
+    offline (made once, then streamed from disk)."""
+    path = bundle_file(state.jobs, _record(state, task_id))
+    return FileResponse(path, media_type="application/zip", filename=f"{task_id}.zip")
 
 
 @router.post(

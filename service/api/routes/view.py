@@ -18,11 +18,11 @@ from __future__ import annotations
 import html
 
 from fastapi import APIRouter, Query
-from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
+from fastapi.responses import FileResponse, HTMLResponse
 
 from missions.viewer import served_page, static_file
 from missions.viewer.page import ListedTask, task_list_page
-from service.artifacts import view_of
+from service.artifacts import view_file, view_of
 from service.deps import ServiceState, StateDep
 from service.errors import ArtifactNotFoundError, TaskNotFoundError, error_responses
 from service.security import CSP, page_policy
@@ -36,24 +36,27 @@ static_router = APIRouter(tags=["viewer"], responses=error_responses(404))
 _STATIC_FROM_TASK, _STATIC_FROM_LIST = "../../viewer/static/", "viewer/static/"
 
 
-def _document(state: ServiceState, task_id: str) -> dict:
+def _record(state: ServiceState, task_id: str) -> TaskRecord:
     record = state.store.get(task_id)
     if record is None:
         raise TaskNotFoundError(f"no task {task_id!r}")
-    return view_of(state.jobs, record)
+    return record
 
 
 @router.get("/v1/tasks/{task_id}/view", response_class=HTMLResponse)
 def view_task(task_id: str, state: StateDep) -> HTMLResponse:
     """The viewer page of a done task: scene, planned (and flown) motion, profiles."""
-    page = served_page(_document(state, task_id), _STATIC_FROM_TASK, "../../viewer")
+    page = served_page(view_of(state.jobs, _record(state, task_id)), _STATIC_FROM_TASK,
+                       "../../viewer")  # fmt: skip
     return HTMLResponse(page, headers={CSP: page_policy(page)})
 
 
-@router.get("/v1/tasks/{task_id}/view.json")
-def view_task_data(task_id: str, state: StateDep) -> JSONResponse:
-    """The viewer's document of a done task (docs/viewer.md)."""
-    return JSONResponse(_document(state, task_id))
+@router.get("/v1/tasks/{task_id}/view.json", response_class=FileResponse)
+def view_task_data(task_id: str, state: StateDep) -> FileResponse:
+    """The viewer's document of a done task (docs/viewer.md), made once, then from disk."""
+    return FileResponse(
+        view_file(state.jobs, _record(state, task_id)), media_type="application/json"
+    )
 
 
 def _listed(record: TaskRecord) -> ListedTask:
