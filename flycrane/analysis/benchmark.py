@@ -65,7 +65,7 @@ def run_one(scene: str, options: PlannerOptions) -> RunRecord:
     metrics = outcome.metrics
     return RunRecord(
         scene=scene,
-        planner=options.algorithm_for(problem.validity.has_meshes),
+        planner=options.algorithm_for(problem.validity.payload_meshes),
         seed=options.seed,
         status=outcome.result.status.value,
         time=stats.time,

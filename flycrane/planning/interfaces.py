@@ -39,8 +39,8 @@ class CompiledChecker(Validity, Protocol):
     compiled: CompiledValidity
     work: tuple
     resolution: float
-    #: The scene has meshes, which only :meth:`motion_is_valid` (fcl) checks.
-    has_meshes: bool
+    #: The payload has meshes, which only :meth:`motion_is_valid` (fcl) checks.
+    payload_meshes: bool
 
 
 class Planner(Protocol):

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from flycrane.planning.algorithms.bitrrt import BiTRRT, BiTRRTConfig, MeshScene
+from flycrane.planning.algorithms.bitrrt import BiTRRT, BiTRRTConfig, PayloadMeshes
 from flycrane.planning.algorithms.ompl_peers import OmplPlanner
 from flycrane.planning.algorithms.trrt import TRRT, TRRTConfig
 from flycrane.planning.formation_polish import PolishConfig, polish_formation
@@ -47,8 +47,8 @@ class PlannerOptions(BaseModel):
     algorithm: Algorithm | None = Field(
         None,
         description="bitrrt, trrt (the paper's T-RRT), rrt, or OMPL's peers; None (the "
-        "default): the scene's default, bitrrt, or trrt in scenes with triangle meshes, "
-        "which bitrrt does not check",
+        "default): bitrrt, or trrt with a payload of triangle meshes, which bitrrt does "
+        "not check",
     )
     seed: Seed = Field(0, description="random seed: same seed, same path")
     time_budget: float = Field(60.0, gt=0, le=86_400, description="planning time limit [s]")
@@ -94,21 +94,22 @@ class PlannerOptions(BaseModel):
             )
         return self
 
-    def algorithm_for(self, has_meshes: bool) -> Algorithm:
-        """The planner that runs in a scene with or without triangle meshes: bitrrt checks
-        primitive shapes only, so the default (``algorithm`` None) is trrt there (fcl checks
-        meshes), and bitrrt asked for by name is refused. The choice is the data's, not
-        whether a field was set: a stored task means what was sent.
+    def algorithm_for(self, payload_meshes: bool) -> Algorithm:
+        """The planner that runs with a payload of (or without) triangle meshes: bitrrt
+        checks obstacle meshes but a payload of primitive shapes only, so the default
+        (``algorithm`` None) is trrt there (fcl checks the payload), and bitrrt asked for by
+        name is refused. The choice is the data's, not whether a field was set: a stored
+        task means what was sent.
 
         Raises
         ------
-        MeshScene
-            bitrrt asked for and the scene has meshes.
+        PayloadMeshes
+            bitrrt asked for and the payload has meshes.
         """
         if self.algorithm is None:
-            return "trrt" if has_meshes else "bitrrt"
-        if self.algorithm == "bitrrt" and has_meshes:
-            raise MeshScene()
+            return "trrt" if payload_meshes else "bitrrt"
+        if self.algorithm == "bitrrt" and payload_meshes:
+            raise PayloadMeshes()
         return self.algorithm
 
     def polishes(self, algorithm: Algorithm) -> bool:
@@ -152,10 +153,10 @@ def make_planner(
 
     Raises
     ------
-    MeshScene
+    PayloadMeshes
         bitrrt asked for by name in a scene with triangle meshes.
     """
-    algorithm = algorithm or options.algorithm_for(validity.has_meshes)
+    algorithm = algorithm or options.algorithm_for(validity.payload_meshes)
     return PLANNERS[algorithm](space, validity, options)
 
 
@@ -200,7 +201,7 @@ def plan(
     by default :func:`make_planner`'s. ``algorithm``: the one that runs, where the caller
     resolved it already (:meth:`PlannerOptions.algorithm_for`)."""
     termination = TerminationCondition(options.time_budget, should_stop)
-    algorithm = algorithm or options.algorithm_for(validity.has_meshes)
+    algorithm = algorithm or options.algorithm_for(validity.payload_meshes)
     planner = planner or make_planner(space, validity, options, algorithm)
     result = planner.solve(start, goal, termination, seed=options.seed, progress=progress)
     if not result.status.solved:

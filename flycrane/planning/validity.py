@@ -6,8 +6,8 @@ thrust-feasible, J non-singular) and no body collides. Every check runs in compi
 (:mod:`flycrane.planning.validity_kernel`): bounds, then statics (~1 us), then collisions
 of the primitive shapes (:mod:`flycrane.world.collision_kernel`, ~1-3 us). python-fcl
 (:class:`~flycrane.world.collision.CollisionChecker`) remains the reference the kernel is tested
-against, the checker of triangle meshes (configurations the kernel finds free in a scene
-with meshes are checked by fcl as well), and the source of contact depths and clearances
+against, the checker of payload meshes (configurations the kernel finds free with a
+payload mesh are checked by fcl as well), and the source of contact depths and clearances
 in messages.
 
 Motions are checked along the local path at ``resolution`` (default 0.05 of path length,
@@ -83,9 +83,9 @@ class ValidityChecker:
         self.system, self.scene, self.space, self.base_dir = system, scene, space, base_dir
         self.resolution = resolution
         self.collision = CollisionChecker(system, scene, base_dir)
-        self.compiled = CompiledValidity.build(system, scene, space)
+        self.compiled = CompiledValidity.build(system, scene, space, base_dir)
         self.work = self.compiled.workspace()
-        self.has_meshes = self.compiled.compiled_scene.has_meshes
+        self.payload_meshes = self.compiled.compiled_scene.payload_meshes
 
     def __reduce__(self):
         # fcl objects do not pickle; worker processes rebuild the checker (milliseconds).
@@ -116,7 +116,7 @@ class ValidityChecker:
     def _states(self, q: ArrayLike, use_bounds: bool) -> tuple[NDArray, NDArray]:
         q = np.ascontiguousarray(as_configurations(q))
         cost, valid = self.compiled.states(q, use_bounds, self.work)
-        if self.has_meshes and valid.any():
+        if self.payload_meshes and valid.any():
             valid[valid] = self.collision.collision_free(q[valid])
         return cost, valid
 
@@ -145,7 +145,7 @@ class ValidityChecker:
         included."""
         a = np.ascontiguousarray(q_from, dtype=float).reshape(9)
         b = np.ascontiguousarray(q_to, dtype=float).reshape(9)
-        if self.has_meshes:
+        if self.payload_meshes:
             return bool(self.is_valid(self.space.discretize(a, b, self.resolution)).all())
         return bool(self.is_valid(a[None])[0]) and self.compiled.motion(
             a, b, self.resolution, self.work
@@ -155,7 +155,7 @@ class ValidityChecker:
         """:meth:`motion_is_valid` of many motions (N, 9) -> (N,), in one compiled call."""
         a = np.ascontiguousarray(as_configurations(q_from, "q_from"))
         b = np.ascontiguousarray(as_configurations(q_to, "q_to"))
-        if self.has_meshes:
+        if self.payload_meshes:
             return np.array([self.motion_is_valid(x, y) for x, y in zip(a, b, strict=True)])
         return self.compiled.motions(a, b, self.resolution, self.work)
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -51,7 +52,7 @@ def state_check(q, model, work, use_bounds) -> tuple[float, bool]:
     """(cost, valid) of one configuration; the cost is +inf outside the bounds (when used)
     and where infeasible, and valid means finite cost and no collision."""
     bounds, smodel, kin, scene, _ = model
-    statics_work, f0, v, m, collision_work = work[0], work[1], work[2], work[3], work[4:10]
+    statics_work, f0, v, m, collision_work = work[0], work[1], work[2], work[3], work[4:11]
     if use_bounds and not in_bounds(q, bounds):
         return math.inf, False
     cost = statics_row(q, smodel, f0, v, m, statics_work)
@@ -119,7 +120,11 @@ class CompiledValidity:
 
     @classmethod
     def build(
-        cls, system: CableSystem, scene: SceneSpec, space: ConfigurationSpace
+        cls,
+        system: CableSystem,
+        scene: SceneSpec,
+        space: ConfigurationSpace,
+        base_dir: Path | None = None,
     ) -> CompiledValidity:
         bounds = np.array(
             [
@@ -132,7 +137,7 @@ class CompiledValidity:
                 space.sigma_high,
             ]
         )
-        compiled = CompiledScene.build(system, scene)
+        compiled = CompiledScene.build(system, scene, base_dir)
         model = (
             bounds,
             statics_model(system, CostForm.NORMALIZED),
@@ -154,8 +159,8 @@ class CompiledValidity:
         )
 
     def states(self, q: np.ndarray, use_bounds: bool, work: tuple) -> tuple[np.ndarray, np.ndarray]:
-        """(cost (N,), valid (N,)) of configurations (N, 9); collisions with meshes are not
-        checked here (:attr:`CompiledScene.has_meshes`)."""
+        """(cost (N,), valid (N,)) of configurations (N, 9); collisions with payload meshes
+        are not checked here (:attr:`CompiledScene.payload_meshes`)."""
         cost, valid = np.empty(len(q)), np.empty(len(q), dtype=np.bool_)
         _states(q, self.model, work, use_bounds, cost, valid)
         return cost, valid

@@ -46,6 +46,9 @@ class Body:
     box_center: NDArray[np.float64]  #: (3,) bounding-box centre, parent frame
     half_size: NDArray[np.float64]  #: (3,) bounding-box half sizes along ``rotation``'s axes
     obstacle: fcl.CollisionObject | None = None  #: placed once, for static bodies
+    #: how far from the body every robot body must stay [m]: the clearance of a mesh, which
+    #: cannot be grown (0 for grown primitives); the box above includes it
+    margin: float = 0.0
 
 
 def _bvh(vertices: NDArray, faces: NDArray) -> fcl.BVHModel:
@@ -151,13 +154,14 @@ def platform_body(system: CableSystem, thickness: float) -> Body:
 
 
 def obstacle_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
-    """The scene's obstacles grown by its clearance, placed once in the world (ground
-    excluded); names and indices are the scene's."""
+    """The scene's obstacles grown by its clearance (meshes keep it as their ``margin``),
+    placed once in the world (ground excluded); names and indices are the scene's."""
     bodies = []
     for index, shape in enumerate(scene.grown_obstacles()):
         name = scene.obstacle_name(index)
         body = body_from_shape(shape, name, base_dir, f"scene.obstacles[{index}]")
         placed = fcl.CollisionObject(body.geometry, fcl.Transform(body.rotation, body.center))
+        margin = scene.collision.obstacle_clearance if isinstance(shape, Mesh) else 0.0
         bodies.append(
             Body(
                 body.name,
@@ -165,8 +169,9 @@ def obstacle_bodies(scene: SceneSpec, base_dir: Path | None) -> list[Body]:
                 body.center,
                 body.rotation,
                 body.box_center,
-                body.half_size,
+                body.half_size + margin,
                 placed,
+                margin,
             )
         )
     return bodies

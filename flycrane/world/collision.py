@@ -366,7 +366,13 @@ class CollisionChecker:
             other = self._robot_object("fixed", target[1], pose, row)
             name = self.platform_fixed[target[1]].name
         else:
-            other, name = self.obstacles[target].obstacle, self.obstacles[target].name
+            body = self.obstacles[target]
+            other, name = body.obstacle, body.name
+            if body.margin > 0.0:  # a mesh: its faces kept at the clearance
+                gap = fcl.distance(mine, other, fcl.DistanceRequest(), fcl.DistanceResult())
+                if gap > body.margin:
+                    return None
+                return Contact(self._name(kind, index), name, body.margin - max(gap, 0.0))
         depth = self._depth(mine, other, contacts)
         return Contact(self._name(kind, index), name, depth) if depth > 0 else None
 
@@ -430,6 +436,7 @@ class CollisionChecker:
             mine = self._robot_object(kind, index, pose, 0)
             for obstacle in self.obstacles:
                 gap = fcl.distance(mine, obstacle.obstacle, request, fcl.DistanceResult())
+                gap -= obstacle.margin  # a mesh keeps the clearance from its faces
                 if gap < best.distance:
                     best = Clearance(float(gap), self._name(kind, index), obstacle.name)
         return best

@@ -1,11 +1,13 @@
 """Compiled collision checks of configurations: the planner's fast path (design.md s.6).
 
 The same bodies and rules as :class:`flycrane.world.collision.CollisionChecker` (python-fcl), which
-stays the reference this kernel is tested against and the checker of triangle meshes:
+stays the reference this kernel is tested against and the checker of payload meshes:
 
 - robot: drones (spheres at A_k), cables (capsules b_i -> A_i), the platform (the prism
   through the B'_i, a convex polytope) and the payload's boxes, cylinders and spheres;
-- against the obstacles (grown by the scene's clearance) and the ground (raised by it);
+- against the obstacles (boxes, cylinders and spheres grown by the scene's clearance, the
+  faces of triangle meshes kept within it: a margin, so that a mesh keeps the clearance
+  exactly as a primitive does) and the ground (raised by it);
 - self: drone centres at least ``min_drone_separation`` apart, no drone touching another
   drone's cables, no drone or cable touching the payload (cables without their first
   ``cable_clearance_at_platform`` metres).
@@ -13,9 +15,10 @@ stays the reference this kernel is tested against and the checker of triangle me
 Per configuration, one compiled pass in three parts: the pose (platform and payload, which
 no alpha moves), each drone with its two cables (what its alpha moves), and the formation
 (drone separations, drones against other drones' cables); the planner uses the parts
-alone to choose the alphas of a pose. Every body is box-tested against each obstacle and
-the overlapping pairs are decided by :mod:`flycrane.world.primitives` (exact closed
-forms for spheres, GJK with proven bounds otherwise). Nothing is allocated per
+alone to choose the alphas of a pose. Every body's box descends the obstacles' hierarchy
+(:mod:`flycrane.world.bvh`) and the overlapping pairs are decided by
+:mod:`flycrane.world.primitives` (exact closed forms for spheres, GJK with proven bounds
+otherwise). Nothing is allocated per
 configuration; a batch shares one :func:`workspace`.
 """
 
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -31,6 +35,7 @@ from flycrane.model.cable_system import CableSystem
 from flycrane.model.kinematics import matrix_from_tilt_torsion
 from flycrane.model.system_spec import DRONE_CABLES
 from flycrane.world.bodies import platform_body
+from flycrane.world.bvh import build_hierarchy, stack
 from flycrane.world.primitives import (
     BOX,
     CYLINDER,
@@ -38,6 +43,7 @@ from flycrane.world.primitives import (
     POINT,
     POLYTOPE,
     SEGMENT,
+    TRIANGLE,
     bounds,
     point_distance_squared,
     shapes_touch,
@@ -52,11 +58,28 @@ _PLATFORM = 9
 _CABLE_POINTS = np.array(DRONE_CABLES, dtype=np.int64)
 
 
-def _primitives(shapes) -> tuple[np.ndarray, ...]:
-    """(kind, centre, rotation, size, margin) arrays of boxes, cylinders and spheres."""
+def _primitives(
+    shapes, base_dir: Path | None = None, mesh_margin: float | None = None
+) -> tuple[np.ndarray, ...]:
+    """(kind, centre, rotation, size, margin) arrays of boxes, cylinders and spheres, and
+    with ``mesh_margin`` the faces of meshes (a face's corners are its rotation's rows),
+    each with that margin; without it meshes are left out."""
     kind, center, rot, size, margin = [], [], [], [], []
     for shape in shapes:
         if isinstance(shape, Mesh):
+            if mesh_margin is None:
+                continue
+            vertices, faces = shape.triangles(base_dir)
+            pose = matrix_from_tilt_torsion(np.array(shape.rotation, dtype=float))
+            world = np.asarray(vertices, float) @ pose.T + np.array(shape.center, dtype=float)
+            corners = world[np.asarray(faces, dtype=np.int64).reshape(-1, 3)]
+            normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+            corners = corners[np.linalg.norm(normals, axis=1) > 0.0]  # no area: no face
+            kind += [TRIANGLE] * len(corners)
+            center += list(corners.mean(axis=1))
+            rot += list(corners)
+            size += [np.zeros(3)] * len(corners)
+            margin += [mesh_margin] * len(corners)
             continue
         center.append(np.array(shape.center, dtype=float))
         rot.append(matrix_from_tilt_torsion(np.array(shape.rotation, dtype=float)))
@@ -91,6 +114,9 @@ def _world_boxes(kind, center, rot, size, margin) -> tuple[np.ndarray, np.ndarra
         elif kind[o] == CYLINDER:
             axis = rot[o][:, 2]
             half[o] = size[o, 0] * np.sqrt(np.clip(1 - axis**2, 0, 1)) + size[o, 1] * np.abs(axis)
+        elif kind[o] == TRIANGLE:
+            low, high = rot[o].min(axis=0), rot[o].max(axis=0)
+            half[o] = np.maximum(high - center[o], center[o] - low)
         half[o] += margin[o]
     return center - half, center + half
 
@@ -99,17 +125,19 @@ def _world_boxes(kind, center, rot, size, margin) -> tuple[np.ndarray, np.ndarra
 class CompiledScene:
     """A scene's obstacles, payload and collision settings as the kernel's arrays.
 
-    ``has_meshes``: the scene has triangle meshes, which only fcl checks; configurations
-    the kernel finds free must then also pass the fcl checker.
+    ``payload_meshes``: the payload has triangle meshes, which only fcl checks;
+    configurations the kernel finds free must then also pass the fcl checker.
     """
 
     arrays: tuple
-    has_meshes: bool
+    payload_meshes: bool
 
     @classmethod
-    def build(cls, system: CableSystem, scene: SceneSpec) -> CompiledScene:
+    def build(
+        cls, system: CableSystem, scene: SceneSpec, base_dir: Path | None = None
+    ) -> CompiledScene:
         settings = scene.collision
-        obstacles = _primitives(scene.grown_obstacles())
+        obstacles = _primitives(scene.grown_obstacles(), base_dir, settings.obstacle_clearance)
         low, high = _world_boxes(*obstacles)
         payload = _primitives(scene.payload.shapes)
         prism = platform_body(system, settings.platform_thickness)
@@ -143,15 +171,16 @@ class CompiledScene:
             _CABLE_POINTS,
             np.concatenate([body_kind, payload[0]]),
             np.concatenate([body_margin, payload[4]]),
+            *build_hierarchy(low, high).arrays(),
         )
-        meshes = any(isinstance(s, Mesh) for s in (*scene.obstacles, *scene.payload.shapes))
-        return cls(arrays, meshes)
+        return cls(arrays, any(isinstance(s, Mesh) for s in scene.payload.shapes))
 
     def workspace(self) -> tuple:
         """Scratch tables for :func:`collision_free_row`, one per batch: the robot bodies'
         world centres (cable starts), sizes (cable ends), rotations and bounds, the
-        platform's world vertices, GJK scratch; the bodies' last row is a spare shape."""
-        bodies = len(self.arrays[-2])
+        platform's world vertices, GJK scratch, the hierarchy's traversal stack; the
+        bodies' last row is a spare shape."""
+        bodies = len(self.arrays[15])
         vertices = len(self.arrays[12])
         return (
             np.zeros((bodies + 1, 3)),
@@ -160,6 +189,7 @@ class CompiledScene:
             np.zeros((vertices, 3)),
             np.zeros((bodies, 2, 3)),
             np.zeros((GJK_WORK, 3)),
+            stack(),
         )
 
 
@@ -173,27 +203,41 @@ def _bodies_free(first, last, scene, work) -> bool:
     """
     obs_kind, obs_center, obs_rot, obs_size, obs_margin, obs_low, obs_high = scene[:7]
     params, kinds, margins = scene[13], scene[15], scene[16]
-    centers, sizes, rots, verts, boxes, gjk = work
+    node_low, node_high, node_first, node_count, order = scene[17:22]
+    centers, sizes, rots, verts, boxes, gjk, pending = work
     for b in range(first, last):
         bounds(kinds[b], b, centers, rots, sizes, verts, margins[b], boxes, b)
         if params[5] > 0.0 and boxes[b, 0, 2] <= params[4]:
             return False
-        for o in range(obs_kind.shape[0]):
-            if (
-                boxes[b, 0, 0] > obs_high[o, 0]
-                or boxes[b, 1, 0] < obs_low[o, 0]
-                or boxes[b, 0, 1] > obs_high[o, 1]
-                or boxes[b, 1, 1] < obs_low[o, 1]
-                or boxes[b, 0, 2] > obs_high[o, 2]
-                or boxes[b, 1, 2] < obs_low[o, 2]
-            ):
+        top = 0
+        if node_count.shape[0] > 0:
+            pending[0], top = 0, 1
+        while top > 0:  # down the hierarchy, through the nodes the body's box overlaps
+            top -= 1
+            m = pending[top]
+            if not _box_overlaps(boxes, b, node_low, node_high, m):
                 continue
-            if shapes_touch(
-                kinds[b], b, centers, rots, sizes, verts,
-                obs_kind[o], o, obs_center, obs_rot, obs_size, verts,
-                margins[b] + obs_margin[o], gjk,
-            ):  # fmt: skip
-                return False
+            if node_count[m] == 0:
+                pending[top], pending[top + 1] = node_first[m], node_first[m] + 1
+                top += 2
+                continue
+            for i in range(node_first[m], node_first[m] + node_count[m]):
+                o = order[i]
+                if _box_overlaps(boxes, b, obs_low, obs_high, o) and shapes_touch(
+                    kinds[b], b, centers, rots, sizes, verts,
+                    obs_kind[o], o, obs_center, obs_rot, obs_size, verts,
+                    margins[b] + obs_margin[o], gjk,
+                ):  # fmt: skip
+                    return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def _box_overlaps(boxes, b, low, high, o) -> bool:
+    """Body b's box (boxes[b]: low, high) against box o of ``low``, ``high`` (O, 3)."""
+    for axis in range(3):
+        if boxes[b, 0, axis] > high[o, axis] or boxes[b, 1, axis] < low[o, axis]:
+            return False
     return True
 
 
@@ -251,7 +295,7 @@ def drone_free(q, k, kin, scene, work) -> bool:
     the other drones."""
     _, foot, radius, outward, up = kin
     params, kinds, margins = scene[13], scene[15], scene[16]
-    centers, sizes, rots, verts, boxes, gjk = work
+    centers, sizes, rots, verts, boxes, gjk = work[:6]
     spare = kinds.shape[0]
     rot = rots[spare]
     drone = 3 * k
@@ -361,7 +405,7 @@ def kinematic_arrays(system: CableSystem) -> tuple:
 
 
 def collision_free(system: CableSystem, compiled: CompiledScene, q: np.ndarray) -> np.ndarray:
-    """Kernel verdicts for configurations (N, 9), ignoring meshes (N,)."""
+    """Kernel verdicts for configurations (N, 9), ignoring payload meshes (N,)."""
     q = np.ascontiguousarray(q, dtype=float).reshape(-1, 9)
     out = np.empty(len(q), dtype=np.bool_)
     _collision_free_rows(q, kinematic_arrays(system), compiled.arrays, compiled.workspace(), out)

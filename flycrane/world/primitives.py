@@ -24,7 +24,8 @@ Shapes are rows of tables (centres (n, 3), rotations (n, 3, 3), sizes (n, 3), ve
 slicing views, keeps the compiled calls free of reference counting): POINT at its centre;
 SEGMENT from its centre to its ``size`` row; BOX centre, axes (columns of the rotation),
 half sizes; CYLINDER centre, axes (its own z is the axis), size = (radius, half height, -);
-POLYTOPE the convex hull of the vertices.
+POLYTOPE the convex hull of the vertices; TRIANGLE (a mesh's face) its three corners, the
+rows of its rotation slot (its centre row holds their centroid).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ import math
 
 import numba
 
-POINT, SEGMENT, BOX, CYLINDER, POLYTOPE = 0, 1, 2, 3, 4
+POINT, SEGMENT, BOX, CYLINDER, POLYTOPE, TRIANGLE = 0, 1, 2, 3, 4, 5
 
 #: GJK stops, calling the shapes touching, when its bounds meet to this relative gap.
 EPS_RELATIVE = 1e-10
@@ -74,6 +75,13 @@ def support(kind, row, centers, rots, sizes, verts, dx, dy, dz, out) -> None:
             out[a] = (
                 centers[row, a] + rots[row, a, 0] * px + rots[row, a, 1] * py + rots[row, a, 2] * pz
             )
+    elif kind == TRIANGLE:
+        best, index = -math.inf, 0
+        for k in range(3):
+            value = rots[row, k, 0] * dx + rots[row, k, 1] * dy + rots[row, k, 2] * dz
+            if value > best:
+                best, index = value, k
+        out[0], out[1], out[2] = rots[row, index, 0], rots[row, index, 1], rots[row, index, 2]
     else:
         best, index = -math.inf, 0
         for k in range(verts.shape[0]):
@@ -106,6 +114,9 @@ def bounds(kind, row, centers, rots, sizes, verts, margin, out, out_row) -> None
                 axis
             )
             low, high = centers[row, a] - half, centers[row, a] + half
+        elif kind == TRIANGLE:
+            low = min(rots[row, 0, a], rots[row, 1, a], rots[row, 2, a])
+            high = max(rots[row, 0, a], rots[row, 1, a], rots[row, 2, a])
         else:
             low, high = math.inf, -math.inf
             for k in range(verts.shape[0]):

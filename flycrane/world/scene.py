@@ -203,17 +203,6 @@ class SceneSpec(BaseModel):
     goal: Configuration
     collision: CollisionSettings = Field(default_factory=CollisionSettings)
 
-    @model_validator(mode="after")
-    def _clearance_can_grow_the_obstacles(self) -> SceneSpec:
-        if self.collision.obstacle_clearance > 0:
-            meshes = [i for i, o in enumerate(self.obstacles) if isinstance(o, Mesh)]
-            if meshes:
-                raise ValueError(
-                    f"collision.obstacle_clearance > 0 cannot grow mesh obstacles "
-                    f"(obstacles {meshes}); give 0 or replace them by boxes, cylinders, spheres"
-                )
-        return self
-
     def obstacle_name(self, index: int) -> str:
         """How collision reports name obstacle ``index`` (its name, else kind and number)."""
         shape = self.obstacles[index]
@@ -231,7 +220,9 @@ class SceneSpec(BaseModel):
     def grown_obstacles(self) -> tuple[Shape, ...]:
         """The obstacles grown by ``collision.obstacle_clearance`` on every side (a box, a
         cylinder's radius and height, a sphere's radius): every point within the clearance
-        of an obstacle lies in its grown shape (boxes and cylinders also add their corners)."""
+        of an obstacle lies in its grown shape (boxes and cylinders also add their corners).
+        Meshes are returned as they are: the checkers keep the clearance from their faces
+        (a margin, :mod:`flycrane.world.collision_kernel`)."""
         c = self.collision.obstacle_clearance
         if c == 0:
             return self.obstacles
@@ -239,6 +230,7 @@ class SceneSpec(BaseModel):
             "box": lambda o: {"size": tuple(v + 2 * c for v in o.size)},
             "cylinder": lambda o: {"radius": o.radius + c, "height": o.height + 2 * c},
             "sphere": lambda o: {"radius": o.radius + c},
+            "mesh": lambda o: {},
         }
         return tuple(o.model_copy(update=grow[o.kind](o)) for o in self.obstacles)
 

@@ -18,7 +18,7 @@ from pydantic import ValidationError
 from flycrane.errors import FieldProblem, InputError
 from flycrane.model.kinematics import drone_positions_from_configuration
 from flycrane.model.system_spec import SystemSpec, problems_from_validation_error, system_preset
-from flycrane.planning.algorithms.bitrrt import MESH_REASON, MeshScene
+from flycrane.planning.algorithms.bitrrt import MESH_REASON, PayloadMeshes
 from flycrane.planning.planners import Algorithm
 from flycrane.planning.poses import configuration_from_pose
 from flycrane.planning.problem import PlanningProblem
@@ -136,8 +136,8 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
             ) from None  # fmt: skip
     problem = PlanningProblem.from_scene(scene, system, scene_dir)
     try:
-        algorithm = task.planner.algorithm_for(problem.validity.has_meshes)
-    except MeshScene:
+        algorithm = task.planner.algorithm_for(problem.validity.payload_meshes)
+    except PayloadMeshes:
         raise InputError([FieldProblem("planner.algorithm", MESH_REASON)]) from None
     checkers = Checkers.of(problem.validity)
     ends, legs = [], []

@@ -47,8 +47,9 @@ Beyond OMPL's BiTRRT, each kept because it measured better (BENCHMARKS.md, "Plan
   path, so a climb worth accepting in a valley (x2) and one out of a cliff (x2) differ by
   orders of magnitude in c and not at all in log c.
 
-Scenes with triangle meshes: the compiled loop checks primitive shapes only, so this
-planner refuses them (:class:`MeshScene`); T-RRT plans with fcl there.
+Obstacles given as triangle meshes are checked in the compiled loop like primitives
+(:mod:`flycrane.world.collision_kernel`); a payload given as a mesh is not, so this planner
+refuses it (:class:`PayloadMeshes`); T-RRT plans with fcl there.
 
 Both trees start at the task's start and goal; a path always ends exactly at the goal.
 """
@@ -180,15 +181,15 @@ INITIAL_CAPACITY = 1024
 GRID_CELL = 0.5
 
 
-#: Why bitrrt refuses a scene with meshes (module docstring).
+#: Why bitrrt refuses a payload of meshes (module docstring).
 MESH_REASON = (
-    "bitrrt checks primitive shapes only and the scene has triangle meshes: "
-    "plan it with trrt, which checks meshes with fcl"
+    "bitrrt checks a payload of boxes, cylinders and spheres only and this payload has "
+    "triangle meshes: plan it with trrt, which checks them with fcl"
 )
 
 
-class MeshScene(InputError):
-    """bitrrt cannot plan in a scene with triangle meshes (module docstring)."""
+class PayloadMeshes(InputError):
+    """bitrrt cannot plan with a payload of triangle meshes (module docstring)."""
 
     def __init__(self) -> None:
         super().__init__([FieldProblem("algorithm", MESH_REASON)], "planner options")
@@ -211,8 +212,8 @@ class BiTRRT:
         config: BiTRRTConfig | None = None,
         name: str = "bitrrt",
     ) -> None:
-        if validity.has_meshes:
-            raise MeshScene()
+        if validity.payload_meshes:
+            raise PayloadMeshes()
         config = config or BiTRRTConfig()
         extent = space.maximum_extent
         step = config.step or STEP_FRACTION * extent

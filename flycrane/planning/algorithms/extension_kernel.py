@@ -201,7 +201,7 @@ def choose_formation(q, preferred, model, work, scratch, caps) -> bool:
     ``preferred`` (3,) at which that drone and its cables touch nothing; of their
     combinations, the valid one of least objective goes into q. False if none is valid."""
     bounds, _, kin, scene, _ = model
-    collision_work = work[4:10]
+    collision_work = work[4:11]
     low, high = bounds[7], bounds[8]
     if not pose_free(q, kin, scene, collision_work):
         return False

@@ -79,13 +79,20 @@ def test_obstacle_clearance_raises_the_ground(system):
     assert c.clearance([0, 0, 0.46, 0, 0, 0, 1, 1, 1]) == pytest.approx(0.01, abs=1e-9)
 
 
-def test_obstacle_clearance_refuses_mesh_obstacles_by_name():
-    from flycrane.world.scene import SceneError
-
-    mesh = {"kind": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "faces": [[0, 1, 2]]}
-    with pytest.raises(SceneError, match="obstacle_clearance > 0 cannot grow mesh obstacles"):
-        scene_from_dict({"obstacles": [mesh], "bounds": BOUNDS, "start": HOVER, "goal": HOVER,
-                         "collision": {"obstacle_clearance": 0.05}})  # fmt: skip
+def test_a_mesh_obstacle_keeps_the_clearance_from_its_faces(system):
+    """A horizontal sheet (two faces) just above the drones' spheres (0.3 m): they keep a
+    0.05 m clearance from it exactly, as from a box's face."""
+    hover = np.array(HOVER, dtype=float)
+    top = drone_positions_from_configuration(system, hover)[0, :, 2].max() + 0.3
+    sheet = {"kind": "mesh", "vertices": [[-5, -5, 0], [5, -5, 0], [5, 5, 0], [-5, 5, 0]],
+             "faces": [[0, 1, 2], [0, 2, 3]]}  # fmt: skip
+    for gap in (0.049, 0.051, 0.2):
+        scene = scene_from_dict({
+            "obstacles": [{**sheet, "center": [0.0, 0.0, float(top + gap)]}], "bounds": BOUNDS,
+            "start": HOVER, "goal": HOVER, "collision": {"obstacle_clearance": 0.05}})  # fmt: skip
+        c = CollisionChecker(system, scene)
+        assert c.collision_free(hover)[0] == (gap > 0.05), gap
+        assert c.clearance(hover) == pytest.approx(gap - 0.05, abs=1e-6)
 
 
 def test_cable_crossing_a_thin_bar(system):

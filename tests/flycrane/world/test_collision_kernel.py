@@ -57,9 +57,53 @@ PRIMITIVES = {
 }
 
 
+def box_mesh(center, size, rotation=(0.0, 0.0, 0.0)) -> dict:
+    """A box as a triangle mesh (12 faces, outward)."""
+    x, y, z = (s / 2 for s in size)
+    vertices = [[sx * x, sy * y, sz * z] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    faces = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+             [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]  # fmt: skip
+    return {"kind": "mesh", "center": list(center), "rotation": list(rotation),
+            "vertices": vertices, "faces": faces}  # fmt: skip
+
+
+#: Obstacles given as triangle meshes, kept at a clearance: closed boxes, an open sheet
+#: (two faces), an octahedron.
+MESHES = {
+    **PRIMITIVES,
+    "name": "meshes",
+    "obstacles": [
+        box_mesh([2, 0, 3], [1.5, 3, 0.4], [0.3, 0.5, 1.0]),
+        {
+            "kind": "mesh",
+            "vertices": [[-3, 0, 3], [-1, 2, 4], [-1, 0, 5], [-3, 2, 2]],
+            "faces": [[0, 1, 2], [0, 3, 1]],
+        },
+        {
+            "kind": "mesh",
+            "center": [0, -2.5, 3.5],
+            "vertices": [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]],
+            "faces": [
+                [0, 2, 4],
+                [2, 1, 4],
+                [1, 3, 4],
+                [3, 0, 4],
+                [2, 0, 5],
+                [1, 2, 5],
+                [3, 1, 5],
+                [0, 3, 5],
+            ],
+        },
+        box_mesh([0, 3, 6], [6, 0.3, 0.3]),
+    ],
+    "collision": {"obstacle_clearance": 0.05},
+}
+
+
 def problem(name: str) -> PlanningProblem:
-    if name == "primitives":
-        return PlanningProblem.from_scene(scene_from_dict(PRIMITIVES))
+    if name in ("primitives", "meshes"):
+        return PlanningProblem.from_scene(scene_from_dict({"primitives": PRIMITIVES,
+                                                           "meshes": MESHES}[name]))  # fmt: skip
     return PlanningProblem.named(name)
 
 
@@ -78,7 +122,7 @@ def boundary_configurations(
     return np.concatenate([prob.space.interpolate(a, b, low), prob.space.interpolate(a, b, high)])
 
 
-@pytest.mark.parametrize("name", ["rescue", "puzzle", "primitives"])
+@pytest.mark.parametrize("name", ["rescue", "puzzle", "primitives", "meshes"])
 def test_kernel_agrees_with_fcl(name):
     prob = problem(name)
     compiled = CompiledScene.build(prob.system, prob.scene)

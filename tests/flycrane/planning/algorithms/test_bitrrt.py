@@ -20,7 +20,7 @@ from flycrane.model.cost import cost_margin_factors
 from flycrane.model.statics import evaluate_statics
 from flycrane.model.statics_kernel import compiled_statics, statics_model
 from flycrane.planning.algorithms import bitrrt, bitrrt_kernel
-from flycrane.planning.algorithms.bitrrt import BiTRRT, BiTRRTConfig, MeshScene, margin_caps
+from flycrane.planning.algorithms.bitrrt import BiTRRT, BiTRRTConfig, PayloadMeshes, margin_caps
 from flycrane.planning.algorithms.bitrrt_kernel import MARGIN
 from flycrane.planning.algorithms.extension_kernel import repair_objective
 from flycrane.planning.planners import PlannerOptions, make_planner, plan
@@ -137,20 +137,25 @@ def test_config_shares_are_checked():
         BiTRRTConfig(translate_share=0.9, rotate_share=0.2)
 
 
-def test_mesh_scenes_are_refused_naming_the_alternative():
+def test_mesh_obstacles_are_planned_and_a_mesh_payload_is_refused_naming_the_alternative():
     problem = PlanningProblem.named("rescue")
     triangle = {"kind": "mesh", "vertices": [[9, 9, 0], [10, 9, 0], [9, 10, 1]],
                 "faces": [[0, 1, 2]]}  # fmt: skip
     data = problem.scene.model_dump(mode="json")
     data["obstacles"] = [*data["obstacles"], triangle]
     meshed = PlanningProblem.from_scene(scene_from_dict(data))
-    assert meshed.validity.has_meshes
-    with pytest.raises(MeshScene, match="trrt"):
-        BiTRRT(meshed.space, meshed.validity)
-    with pytest.raises(MeshScene):
-        make_planner(meshed.space, meshed.validity, PlannerOptions(algorithm="bitrrt"))
-    # The default falls back to T-RRT, which checks meshes with fcl.
-    assert make_planner(meshed.space, meshed.validity, PlannerOptions()).name == "trrt"
+    assert not meshed.validity.payload_meshes  # the compiled checker checks the faces
+    assert make_planner(meshed.space, meshed.validity, PlannerOptions()).name == "bitrrt"
+    data["payload"]["shapes"] = [{**triangle, "vertices": [[0, 0, -0.3], [0.5, 0, -0.3],
+                                                           [0, 0.5, -0.2]]}]  # fmt: skip
+    carried = PlanningProblem.from_scene(scene_from_dict(data))
+    assert carried.validity.payload_meshes
+    with pytest.raises(PayloadMeshes, match="trrt"):
+        BiTRRT(carried.space, carried.validity)
+    with pytest.raises(PayloadMeshes):
+        make_planner(carried.space, carried.validity, PlannerOptions(algorithm="bitrrt"))
+    # The default falls back to T-RRT, which checks the payload with fcl.
+    assert make_planner(carried.space, carried.validity, PlannerOptions()).name == "trrt"
 
 
 def test_the_kernels_parameter_indices_follow_the_params_fields():
