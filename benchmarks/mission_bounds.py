@@ -1,7 +1,7 @@
 """What building and writing a mission costs as its duration grows, up to the longest one
 the service accepts (``missions.options.MAX_MISSION_DURATION_S``).
 
-    .venv/bin/python benchmarks/mission_bounds.py --lengths 30 75 150 290
+    .venv/bin/python benchmarks/mission_bounds.py --lengths 30 75 150 270
 
 Each run plans nothing: an open field, the platform 3 m up, a straight path of LENGTH m at
 the default 0.5 m/s (about LENGTH / 0.5 s of mission). It prints, per length, the mission's
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from flycrane.planning.planners import plan
-from missions.task.build import build
+from missions.task.build import MissionFailure, build
 from missions.task.directory import TaskDirectory
 from missions.task.pipeline import _write
 from missions.task.resolve import resolve_task
@@ -54,7 +54,11 @@ def measure(length: float) -> str:
     )
     tracemalloc.start()
     clock = time.perf_counter()
-    built = build(resolved, planned.path)
+    try:
+        built = build(resolved, planned.path)
+    except MissionFailure as failure:
+        tracemalloc.stop()
+        return f"{length:7.0f} m: {failure}"
     build_time = time.perf_counter() - clock
     _, build_peak = tracemalloc.get_traced_memory()
     tracemalloc.reset_peak()
@@ -75,7 +79,7 @@ def measure(length: float) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--lengths", nargs="+", type=float, default=[30, 75, 150, 290])
+    parser.add_argument("--lengths", nargs="+", type=float, default=[30, 75, 150, 270])
     args = parser.parse_args()
     print("length duration | build time, peak | write time, peak | tracks.json")
     for length in np.asarray(args.lengths):

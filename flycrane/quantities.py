@@ -51,4 +51,6 @@ Orientation = tuple[Angle, Angle, Angle]
 Configuration = tuple[Coordinate, Coordinate, Coordinate, Angle, Angle, Angle, Angle, Angle, Angle]
 #: Seeds of the random number generators: OMPL's seed is a uint_fast32_t (at least 32
 #: bits) and gets seed + 1.
-Seed = Annotated[int, Field(ge=0, le=2**32 - 1, strict=True)]
+#: The largest seed (the generators take 32 bits).
+MAX_SEED = 2**32 - 1
+Seed = Annotated[int, Field(ge=0, le=MAX_SEED, strict=True)]

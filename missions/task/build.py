@@ -44,6 +44,11 @@ class MissionFailure(FlyCraneError):
     why."""
 
 
+class UnflyablePath(MissionFailure):
+    """No flyable plan of this path keeps the load safe (another path may: the pipeline
+    plans again)."""
+
+
 class Cancelled(FlyCraneError):
     """The task was cancelled while its missions were built or written."""
 
@@ -146,7 +151,7 @@ def build(
         landing=landing,
     )  # fmt: skip
     if not flight.ok:
-        raise MissionFailure(flight.reason)
+        raise UnflyablePath(flight.reason)
     stop.check()
     track = flight.retimed(dense)
     annotations = annotate(system, flight.time, flight.q)

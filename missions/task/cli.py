@@ -42,6 +42,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     outcome = run_task(task, args.out, progress=_progress, base_dir=base_dir, resolved=resolved)
     out = Path(args.out)
     print(f"status: {outcome.status}" + (f" ({outcome.reason})" if outcome.reason else ""))
+    for attempt in outcome.attempts:
+        print(f"  seed {attempt['seed']}: its missions failed their check ({attempt['reason']})")
     stats = outcome.planner_statistics
     print(
         f"planner: {outcome.planner_status} in {stats.get('time', 0):.2f} s, "

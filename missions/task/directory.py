@@ -153,6 +153,8 @@ class TaskOutcome:
     metrics: PathMetrics | None = None
     mission: MissionSummary | None = None
     artifacts: dict[str, str] = field(default_factory=dict)
+    #: paths planned before the last whose missions failed their check: seed and reason
+    attempts: tuple[dict[str, Any], ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -163,6 +165,7 @@ class TaskOutcome:
             "metrics": self.metrics.as_dict() if self.metrics else None,
             "mission": self.mission.as_dict() if self.mission else None,
             "artifacts": dict(self.artifacts),
+            "attempts": [dict(a) for a in self.attempts],
         }
 
     @classmethod
@@ -175,6 +178,7 @@ class TaskOutcome:
             metrics=PathMetrics(**data["metrics"]) if data.get("metrics") else None,
             mission=MissionSummary.from_dict(data["mission"]) if data.get("mission") else None,
             artifacts=dict(data.get("artifacts") or {}),
+            attempts=tuple(data.get("attempts") or ()),
         )
 
 

@@ -5,20 +5,23 @@ planning (:func:`flycrane.planning.planners.plan`), mission building
 (:func:`missions.task.build.build`) and writing (:class:`~missions.task.directory.
 TaskDirectory`, the MCAP log and the profile plot). Not finding a path, or a path that
 cannot be flown safely, is an outcome (status "failed" with the reason), not an exception:
-every phase ends in the one failure exit, which writes ``summary.json``.
+every phase ends in the one failure exit, which writes ``summary.json``. A path whose
+missions fail their check is planned again with another seed while the budget lasts.
 """
 
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 from flycrane.analysis.profiles import path_profile, plot_path_profile
 from flycrane.planning.planners import PlanningOutcome, plan
 from flycrane.planning.result import PlanningProgress
+from flycrane.quantities import MAX_SEED
 from missions.autopilots.ardupilot import team_parameters
 from missions.export.formats import mission_files
 from missions.export.mission_mcap import LogInputs, write_mcap
@@ -26,7 +29,14 @@ from missions.export.parameter_file import parameter_file_text
 from missions.export.trajectory_file import trajectory_text
 from missions.geodesy import geodetic_from_enu
 from missions.position_error import position_error_model
-from missions.task.build import BuiltMissions, Cancelled, MissionFailure, PhaseLimits, build
+from missions.task.build import (
+    BuiltMissions,
+    Cancelled,
+    MissionFailure,
+    PhaseLimits,
+    UnflyablePath,
+    build,
+)
 from missions.task.directory import (
     MCAP_FILE,
     PROFILE_FILE,
@@ -55,6 +65,10 @@ class _Failed(Exception):
         self.status, self.reason = status, reason
 
 
+#: Most plans a task tries when the mission made of a path fails its check.
+MAX_PLANS = 4
+
+
 def run_task(
     task: TaskSpec,
     out_dir: str | Path,
@@ -63,64 +77,110 @@ def run_task(
     base_dir: Path | None = None,
     resolved: ResolvedTask | None = None,
 ) -> TaskOutcome:
-    """Run a task end to end, writing its artifacts into ``out_dir``."""
+    """Run a task end to end, writing its artifacts into ``out_dir``.
+
+    A path whose missions fail their check (:class:`~missions.task.build.UnflyablePath`)
+    is planned again with the next seed, up to :data:`MAX_PLANS` plans, while the planning
+    budget (``planner.time_budget``, shared by the plans) lasts; the outcome lists what was
+    tried (``attempts``) and ``task.json`` the seed that made the missions."""
     directory = TaskDirectory(out_dir).create()
     resolved = resolved or resolve_task(task, base_dir)
     report = progress or (lambda *_: None)
-    report("planning", None)
-    planned = plan(
-        resolved.problem.space,
-        resolved.checkers.planning,
-        resolved.start,
-        resolved.goal,
-        task.planner,
-        should_stop=should_stop,
-        progress=lambda p: report("planning", p),
-        algorithm=resolved.algorithm,
-    )
-    result = planned.result
-    statistics = {**result.statistics.as_dict(), "smoothing_time": planned.smoothing_time}
-    outcome = TaskOutcome(
-        "failed", planner_status=result.status.value, planner_statistics=statistics
-    )
-    try:
-        if not result.status.solved:
-            cancelled = result.status.value == "cancelled"
-            raise _Failed(
-                "cancelled" if cancelled else "failed", result.reason or result.status.value
-            )
-        report("generating", None)
-        outcome = TaskOutcome(**{**outcome.__dict__, "metrics": planned.metrics})
-        directory.write_task(resolved.self_contained())
-        directory.write_path(planned.path, result.path)
+    planning_ends = time.monotonic() + task.planner.time_budget
+    limits: PhaseLimits | None = None  # the making's budget, from the first path on
+    attempts: list[dict[str, Any]] = []
+    seed = task.planner.seed
+    while True:
+        report("planning", None)
+        options = task.planner.model_copy(
+            update={"seed": seed, "time_budget": max(planning_ends - time.monotonic(), 1e-3)}
+        )
+        planned = plan(
+            resolved.problem.space,
+            resolved.checkers.planning,
+            resolved.start,
+            resolved.goal,
+            options,
+            should_stop=should_stop,
+            progress=lambda p: report("planning", p),
+            algorithm=resolved.algorithm,
+        )
+        result = planned.result
+        statistics = {**result.statistics.as_dict(), "smoothing_time": planned.smoothing_time}
+        outcome = TaskOutcome(
+            "failed",
+            planner_status=result.status.value,
+            planner_statistics=statistics,
+            attempts=tuple(attempts),
+        )
         try:
-            limits = PhaseLimits.starting_now(should_stop, task.planner.time_budget)
-            built = build(resolved, planned.path, limits)
+            if not result.status.solved:
+                cancelled = result.status.value == "cancelled"
+                reason = result.reason or result.status.value
+                if attempts:
+                    reason = f"{reason} (after {len(attempts)} unflyable path(s))"
+                raise _Failed("cancelled" if cancelled else "failed", reason)
+            report("generating", None)
+            outcome = TaskOutcome(**{**outcome.__dict__, "metrics": planned.metrics})
+            used = resolved.self_contained()
+            directory.write_task(used.model_copy(update={"planner": used.planner.model_copy(
+                update={"seed": seed})}))  # fmt: skip
+            directory.write_path(planned.path, result.path)
+            limits = limits or PhaseLimits.starting_now(should_stop, task.planner.time_budget)
+            try:
+                built = build(resolved, planned.path, limits)
+            except UnflyablePath as unflyable:
+                attempts.append({"seed": seed, "reason": str(unflyable)})
+                if len(attempts) < MAX_PLANS and time.monotonic() < planning_ends:
+                    logger.info("seed %d: %s; planning again", seed, unflyable)
+                    seed = (seed + 1) % (MAX_SEED + 1)
+                    continue
+                tried = ", ".join(str(a["seed"]) for a in attempts)
+                reason = f"mission generation: {unflyable} (seeds tried: {tried})"
+                raise _Failed("failed", reason) from None
             _write(directory, resolved, planned, built, limits)
         except MissionFailure as failure:
-            raise _Failed("failed", f"mission generation: {failure}") from None
+            reason = f"mission generation: {failure}"
+            return directory.write_summary(_failure(directory, outcome, "failed", reason, attempts))
         except Cancelled as cancelled:
-            raise _Failed("cancelled", str(cancelled)) from None
-    except _Failed as failure:
-        failed = TaskOutcome(
-            **{
-                **outcome.__dict__,
-                "status": failure.status,
-                "reason": failure.reason,
-                "artifacts": dict(directory.artifacts),
-            }
-        )
-        return directory.write_summary(failed)
+            return directory.write_summary(
+                _failure(directory, outcome, "cancelled", str(cancelled), attempts)
+            )
+        except _Failed as failure:
+            return directory.write_summary(
+                _failure(directory, outcome, failure.status, failure.reason, attempts)
+            )
+        break
     done = TaskOutcome(
         **{
             **outcome.__dict__,
             "status": "done",
             "mission": built.summary,
             "artifacts": dict(directory.artifacts),
+            "attempts": tuple(attempts),
         }
     )
     logger.info("task done in %s: %d waypoints", directory.path, built.summary.waypoints)
     return directory.write_summary(done)
+
+
+def _failure(
+    directory: TaskDirectory,
+    outcome: TaskOutcome,
+    status: Status,
+    reason: str,
+    attempts: list[dict[str, Any]],
+) -> TaskOutcome:
+    """The one failure exit: the outcome so far with its status, reason, attempts, files."""
+    return TaskOutcome(
+        **{
+            **outcome.__dict__,
+            "status": status,
+            "reason": reason,
+            "artifacts": dict(directory.artifacts),
+            "attempts": tuple(attempts),
+        }
+    )
 
 
 def _write(

@@ -6,6 +6,7 @@ BENCHMARKS.md "Bounded work".)"""
 
 from __future__ import annotations
 
+import json
 import time
 import tracemalloc
 from pathlib import Path
@@ -16,7 +17,7 @@ import pytest
 from flycrane.errors import InputError
 from flycrane.planning.planners import PlannerOptions
 from missions.options import MAX_MISSION_DURATION_S, MissionOptions
-from missions.task.build import Cancelled, MissionFailure, PhaseLimits, build
+from missions.task.build import Cancelled, MissionFailure, PhaseLimits, UnflyablePath, build
 from missions.task.pipeline import run_task
 from missions.task.resolve import resolve_task
 from missions.task.spec import TaskSpec
@@ -115,3 +116,47 @@ def test_the_building_phases_raise_cancelled_when_asked():
     path = np.stack([resolved.start, resolved.goal])
     with pytest.raises(Cancelled):
         build(resolved, path, PhaseLimits(should_stop=lambda: True))
+
+
+def test_a_path_whose_missions_fail_their_check_is_planned_again_with_the_next_seed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """Issue 24, item 5 (the Puzzle's seed 57 planned, then failed its mission check): the
+    task plans again with the next seed, says what it tried, and task.json names the seed
+    whose missions were made. The first path's check is made to fail here."""
+    import missions.task.pipeline as pipeline
+
+    calls: list[int] = []
+    real_build = pipeline.build
+
+    def failing_once(resolved, path, limits=None):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        if len(calls) == 1:
+            raise UnflyablePath("the modelled flight fails its check at 11.80 s")
+        return real_build(resolved, path, limits)
+
+    monkeypatch.setattr(pipeline, "build", failing_once)
+    task = TaskSpec(scene="rescue", planner=PlannerOptions(seed=7),
+                    mission=MissionOptions(position_error="sitl"))  # fmt: skip
+    outcome = run_task(task, tmp_path)
+    assert outcome.status == "done", outcome.reason
+    assert outcome.attempts == ({"seed": 7, "reason": "the modelled flight fails its check at "
+                                 "11.80 s"},)  # fmt: skip
+    written = json.loads((tmp_path / "task.json").read_text())
+    assert written["planner"]["seed"] == 8
+    assert json.loads((tmp_path / "summary.json").read_text())["attempts"][0]["seed"] == 7
+
+
+def test_planning_again_stops_at_the_most_plans_and_says_which_seeds(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    import missions.task.pipeline as pipeline
+
+    def never(resolved, path, limits=None):  # type: ignore[no-untyped-def]
+        raise UnflyablePath("no flyable plan")
+
+    monkeypatch.setattr(pipeline, "build", never)
+    outcome = run_task(TaskSpec(scene="rescue", planner=PlannerOptions(seed=3)), tmp_path)
+    assert outcome.status == "failed"
+    assert [a["seed"] for a in outcome.attempts] == [3, 4, 5, 6][: pipeline.MAX_PLANS]
+    assert outcome.reason.endswith("(seeds tried: 3, 4, 5, 6)")

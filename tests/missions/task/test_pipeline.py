@@ -179,24 +179,42 @@ def test_an_unknown_scene_is_an_input_error_naming_the_scene_field():
     assert "atlantis" in str(caught.value) and "rescue" in str(caught.value)
 
 
-def test_bitrrt_asked_for_in_a_scene_with_meshes_is_refused_naming_the_field():
-    """bitrrt checks primitive shapes only: asked for in a mesh scene it is refused at once;
-    the default falls back to T-RRT, which plans it (flycrane/planning/planners.py)."""
+def box_mesh(name: str, center: list[float], size: list[float]) -> dict:
+    """A box as a named triangle mesh (12 faces), as a site from CAD would give it."""
+    x, y, z = (v / 2 for v in size)
+    vertices = [[sx * x, sy * y, sz * z] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    faces = [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+             [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]]  # fmt: skip
+    return {"kind": "mesh", "name": name, "center": center, "vertices": vertices, "faces": faces}
+
+
+def test_the_rescue_with_its_buildings_as_meshes_plans_with_the_default_mission(tmp_path):
+    """Issue 24: the Rescue's buildings given as triangle meshes (12 faces each, the same
+    boxes) with the default position-error model's clearance: planned by bitrrt, the
+    missions made, the bridge set down onto both roofs, as with boxes."""
     scene = load_scene("rescue")[0].model_dump(mode="json")
-    scene["obstacles"].append(
-        {"kind": "mesh", "name": "sign", "vertices": [[9, 4, 0], [10, 4, 0], [9, 5, 1]],
-         "faces": [[0, 1, 2]]}
-    )  # fmt: skip
-    exact = MissionOptions(position_error="exact")  # meshes cannot be grown by a clearance
+    scene["obstacles"] = [box_mesh(o["name"], o["center"], o["size"]) for o in scene["obstacles"]]
+    task = TaskSpec(scene=scene, planner=PlannerOptions(seed=0, time_budget=60))
+    resolved = resolve_task(task)
+    assert resolved.algorithm == "bitrrt" and not resolved.problem.validity.payload_meshes
+    outcome = run_task(task, tmp_path)
+    assert outcome.status == "done", outcome.reason
+    mission = outcome.mission
+    assert mission.obstacle_clearance == pytest.approx(0.08)
+    assert set(mission.set_down.leg.surfaces) == {"west building", "east building"}
+
+
+def test_bitrrt_asked_for_with_a_mesh_payload_is_refused_naming_the_field():
+    """bitrrt checks a payload of primitive shapes only: asked for with a mesh payload it is
+    refused at once; the default falls back to T-RRT (flycrane/planning/planners.py)."""
+    scene = load_scene("rescue")[0].model_dump(mode="json")
+    scene["payload"]["shapes"] = [box_mesh("footbridge", [0.0, 0.0, -0.35], [4.6, 0.8, 0.1])]
     with pytest.raises(InputError) as caught:
-        resolve_task(
-            TaskSpec(scene=scene, planner=PlannerOptions(algorithm="bitrrt"), mission=exact)
-        )
+        resolve_task(TaskSpec(scene=scene, planner=PlannerOptions(algorithm="bitrrt")))
     assert [p.field for p in caught.value.problems] == ["planner.algorithm"]
     assert "trrt" in str(caught.value)
-    task = TaskSpec(scene=scene, mission=exact)
-    resolved = resolve_task(task)
-    assert resolved.problem.validity.has_meshes
+    resolved = resolve_task(TaskSpec(scene=scene))
+    assert resolved.problem.validity.payload_meshes
     # task.json names the planner, and reads back as a task (the flight report's)
     written = resolved.self_contained().model_dump(mode="json")
     assert written["planner"]["algorithm"] == "trrt"
