@@ -48,6 +48,15 @@ logger = logging.getLogger(__name__)
 #: The longest pause of the ground's own that is not a vehicle's silence [s of ground
 #: time] (module docstring of :mod:`.team`, ``link``).
 GROUND_PAUSE_S = 0.1
+#: Faults after which the drone still flies under its own control, with an estimate the
+#: team can follow to the stop (:meth:`Executor._follow`). Not a stray drone: one that
+#: cannot follow its targets (a weak motor) wanders, and following it spread the team
+#: 0.45 m apart (p95) on the Puzzle where braking kept it safe (BENCHMARKS.md).
+FOLLOWED = (FaultKind.MODE, FaultKind.FAILSAFE)
+#: How far from the clock's plan time a followed drone's progress is looked for [s].
+FOLLOW_WINDOW_S = 3.0
+#: The clock's rate per second of plan time between it and a followed drone [1/s].
+FOLLOW_GAIN = 2.0
 #: A vehicle not heard for this long [s of common time] does not steer the clock: its
 #: estimate is too old to say how it keeps up, and a clock changed now might not reach it.
 STALE_S = 0.2
@@ -159,6 +168,7 @@ class Executor:
         self._stop = threading.Event()
         self._done = threading.Event()
         self._stopping = False
+        self._leader: int | None = None  #: a faulty drone the stopping team follows
         self._sign = 1.0  #: -1 while retreating along the plan
         self._lock = threading.Lock()
 
@@ -330,6 +340,8 @@ class Executor:
         if stopping and not self._stopping:
             self._stopping = True
             self.record.commanded_stop_at = t
+            if stopping[0].kind in FOLLOWED:
+                self._leader = stopping[0].drone - 1
             logger.warning("team stop: %s", "; ".join(map(str, stopping)))
         for fault in faults:
             self.record.faults.append({**asdict(fault), "kind": str(fault.kind)})
@@ -337,10 +349,35 @@ class Executor:
             return faults  # a drone that may not hear the clock keeps the one it has
         if stale and not self._stopping:
             return faults  # a drone not heard of late says nothing of the team's pace
-        badness = self.options.policy.badness(behind, formation)
         start = max(t, self.clock.segments[-1].start)
+        if self._stopping and self._leader is not None:
+            self._follow(self._leader, start)
+            return faults
+        badness = self.options.policy.badness(behind, formation)
         self.options.policy.steer(self.clock, start, badness, stop=self._stopping, sign=self._sign)
         return faults
+
+    def _follow(self, k: int, t: float) -> None:
+        """Steer the clock to drone k's progress (the plan time whose position of drone k is
+        nearest its estimate, within :data:`FOLLOW_WINDOW_S` of the clock's): a drone that
+        flies on its own after its fault (another mode, a failsafe, a weak motor) stops
+        where its own controller stops it, and the other two stop at the plan's positions
+        beside it rather than wherever the clock's braking would leave them."""
+        assert self.clock is not None
+        estimate = self.vehicles[k].estimate()
+        if estimate is None:
+            self.options.policy.steer(self.clock, t, 0.0, stop=True)
+            return
+        tau = self.clock.tau(t)
+        window = np.clip(tau + np.arange(-FOLLOW_WINDOW_S, FOLLOW_WINDOW_S, 0.02), 0.0,
+                         self.trajectory.duration)  # fmt: skip
+        planned = self.trajectory.at(window)[0][:, k] + self.trajectory.homes[k]
+        here = self.frames[k].task_position(estimate[1])
+        progress = float(window[np.argmin(np.linalg.norm(planned - here, axis=-1))])
+        gap = progress - tau
+        target = 0.0 if abs(gap) < 0.02 else float(np.clip(FOLLOW_GAIN * gap, -1.0, 1.0))
+        if abs(target - self.clock.target) > 0.02:
+            self.clock.steer(t, target, self.options.policy.braking)
 
     def _lost(self, k: int) -> None:
         """Drone k's link was found lost (before it counts no more)."""
@@ -416,7 +453,7 @@ class Executor:
             ]
             if active:
                 raise RuntimeError(f"the team cannot go on: faults {active}")
-            self._stopping, self._sign = False, sign
+            self._stopping, self._sign, self._leader = False, sign, None
             self.monitor.reported.clear()  # a fault that comes back stops the team again
             self._done.clear()
 

@@ -26,6 +26,9 @@ The rate rule (:class:`RatePolicy`), written down with its reasons:
   drones off their targets and feeds the noise it follows.
 - A fault (:mod:`missions.execution.team`) forces the target to 0 at ``braking`` (2/s:
   from full rate to a stop in 0.5 s, a drone at the plan's 0.5 m/s travelling 12.5 cm).
+  A drone that flies on under its own control (another mode, a failsafe) is followed
+  instead: the clock seeks its progress, so that the others stop beside it
+  (:meth:`missions.execution.executor.Executor._follow`).
 
 Limits: the rule sees what the drones report (their estimates), not where they truly are;
 it can wait for a drone, not move one that cannot fly; and a drone whose link is lost keeps
