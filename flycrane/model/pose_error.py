@@ -1,0 +1,88 @@
+"""How far the platform's points move when the drones are off their positions: the
+linearized direct kinematics, and a bound on the displacement from bounds on the drones'
+errors (the paper's future work: robustness to the drones' errors).
+
+With the cables taut, cable i (drone k = CABLE_DRONE[i], platform point b_i = p + R B'_i,
+unit vector u_i from b_i to A_k) keeps its length: to first order
+``u_i . dA_k = u_i . dp + ((b_i - p) x u_i) . dw``, that is ``J^T dx = M da`` with J the
+screw Jacobian of the statics (design.md eq. 2), dx = (dp, dw) the platform's twist and M
+(6 x 9) the cables' unit vectors at their drones' columns. So ``dx = G da`` with
+``G = J^-T M`` (:func:`pose_sensitivity`), defined exactly where the statics are
+(non-singular J).
+
+A platform point at r from P (world axes) moves by ``dp + dw x r = L da``, L = [I, -[r]x] G,
+whose three 3 x 3 blocks L_k say how drone k's error moves it. Drone errors come as a
+*common* part c, shared by the three (a rigid shift: the point moves by c), and each
+drone's own part e_k within a horizontal radius h and a vertical half-height v. The point's
+displacement is then at most (:func:`displacement_bound`)
+
+    |c| + sum_k (||L_k[:, :2]|| h + ||L_k[:, 2]|| v),
+
+the spectral norm of each block's horizontal columns and the norm of its vertical one: the
+triangle inequality over the drones, exact for one drone, and a bound for three
+(``tests/flycrane/model/test_pose_error.py`` holds it against the exact direct kinematics
+of sampled errors). Its assumptions: taut cables (the statics' feasibility), errors small
+against the cables (first order), and the drones' errors independent within their bounds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from flycrane.model.cable_system import CABLE_DRONE, CableSystem
+from flycrane.model.kinematics import (
+    as_configurations,
+    drone_positions_from_configuration,
+    matrix_from_tilt_torsion,
+    platform_points_from_configuration,
+)
+from flycrane.model.statics import screw_jacobian_from_points
+
+
+def pose_sensitivity(system: CableSystem, q: ArrayLike) -> NDArray[np.float64]:
+    """G = d(p, w) / d(A_1, A_2, A_3) at configurations q (N, 9): (N, 6, 9), the platform's
+    twist per metre of each drone coordinate (module docstring)."""
+    q = as_configurations(q)
+    platform = platform_points_from_configuration(system, q)
+    drones = drone_positions_from_configuration(system, q)
+    jacobian = screw_jacobian_from_points(q[:, :3], platform, drones)  # (N, 6, 6)
+    u = drones[:, CABLE_DRONE, :] - platform
+    u /= np.linalg.norm(u, axis=-1, keepdims=True)
+    m = np.zeros((len(q), 6, 9))
+    for i, k in enumerate(CABLE_DRONE):
+        m[:, i, 3 * k : 3 * k + 3] = u[:, i]
+    return np.linalg.solve(np.transpose(jacobian, (0, 2, 1)), m)
+
+
+def point_sensitivity(system: CableSystem, q: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
+    """L = d(point) / d(drones) of platform-frame points (P, 3) at configurations q (N, 9):
+    (N, P, 3, 9)."""
+    q = as_configurations(q)
+    rotation = matrix_from_tilt_torsion(q[:, 3:6])
+    r = np.einsum("nab,pb->npa", rotation, np.asarray(points, dtype=float).reshape(-1, 3))
+    g = pose_sensitivity(system, q)
+    # dp + dw x r = dp - r x dw
+    cross = np.zeros(r.shape + (3,))
+    cross[..., 0, 1], cross[..., 0, 2], cross[..., 1, 2] = -r[..., 2], r[..., 1], -r[..., 0]
+    cross -= np.swapaxes(cross, -1, -2)
+    return g[:, None, :3, :] - cross @ g[:, None, 3:, :]
+
+
+def displacement_bound(
+    system: CableSystem,
+    q: ArrayLike,
+    points: ArrayLike,
+    common: tuple[float, float],
+    own: tuple[float, float],
+) -> NDArray[np.float64]:
+    """Bound on the displacement [m] of platform-frame points (P, 3) at configurations q
+    (N, 9) when the drones share an error within ``common`` (horizontal, vertical) and each
+    has its own within ``own`` (horizontal radius, vertical half-height): (N, P) (module
+    docstring)."""
+    sensitivity = point_sensitivity(system, q, points)  # (N, P, 3, 9)
+    blocks = sensitivity.reshape(sensitivity.shape[:-1] + (3, 3))  # (N, P, 3, drone, coord)
+    horizontal = np.linalg.norm(blocks[..., :2], ord=2, axis=(-3, -1))  # (N, P, drone)
+    vertical = np.linalg.norm(blocks[..., 2], axis=-2)  # (N, P, drone)
+    own_part = (horizontal * own[0] + vertical * own[1]).sum(axis=-1)
+    return float(np.hypot(*common)) + own_part

@@ -1,0 +1,80 @@
+"""The linearized platform error against the exact direct kinematics of perturbed drones."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from flycrane.model.direct_kinematics import configuration_from_drone_positions
+from flycrane.model.kinematics import (
+    drone_positions_from_configuration,
+    matrix_from_tilt_torsion,
+)
+from flycrane.model.pose_error import displacement_bound, point_sensitivity
+from flycrane.model.statics import evaluate_statics
+from flycrane.planning.problem import PlanningProblem
+
+#: The Rescue's footbridge ends and the Puzzle-like offset point, in the platform frame.
+POINTS = np.array([[2.3, 0.4, -0.4], [-2.3, -0.4, -0.4], [0.0, 0.0, -0.35]])
+
+
+@pytest.fixture(scope="module")
+def configurations():
+    """Feasible configurations of the Rescue's space (taut cables, non-singular J)."""
+    problem = PlanningProblem.named("rescue")
+    rng = np.random.default_rng(5)
+    q = problem.space.sample_uniform(rng, 400)
+    feasible = evaluate_statics(problem.system, q).feasible
+    return problem.system, q[feasible][:20]
+
+
+def moved_points(system, q, drones):
+    """The points where the exact direct kinematics puts them for drones (S, 3, 3)."""
+    solved = configuration_from_drone_positions(
+        system, drones, initial=np.repeat(q[None], len(drones), 0)
+    )
+    assert solved.converged.all()
+    rotation = matrix_from_tilt_torsion(solved.q[:, 3:6])
+    return solved.q[:, None, :3] + np.einsum("sab,pb->spa", rotation, POINTS)
+
+
+def test_the_sensitivity_is_the_derivative_of_the_direct_kinematics(configurations):
+    """Central differences of the exact solve, 1 mm per drone coordinate."""
+    system, qs = configurations
+    q = qs[0]
+    drones = drone_positions_from_configuration(system, q)[0]
+    step = 1e-3
+    columns = []
+    for j in range(9):
+        delta = np.zeros(9)
+        delta[j] = step
+        up = moved_points(system, q, (drones + delta.reshape(3, 3))[None])[0]
+        down = moved_points(system, q, (drones - delta.reshape(3, 3))[None])[0]
+        columns.append((up - down) / (2 * step))
+    numeric = np.stack(columns, axis=-1)  # (P, 3, 9)
+    np.testing.assert_allclose(point_sensitivity(system, q, POINTS)[0], numeric, atol=2e-5)
+
+
+def test_the_bound_covers_sampled_errors_and_is_not_loose(configurations):
+    """Drone errors at the corners of their bounds (the worst a linear map reaches), solved
+    exactly: every displacement within the bound (plus the second-order term), and the
+    worst sample at least half of it."""
+    system, qs = configurations
+    common, own = (0.04, 0.04), (0.02, 0.013)
+    rng = np.random.default_rng(3)
+    worst = []
+    for q in qs:
+        drones = drone_positions_from_configuration(system, q)[0]
+        angle = rng.uniform(0, 2 * np.pi, (300, 3))
+        errors = np.stack(
+            [own[0] * np.cos(angle), own[0] * np.sin(angle),
+             own[1] * rng.choice([-1.0, 1.0], (300, 3))], axis=-1,
+        )  # fmt: skip
+        shift = np.array([common[0], 0.0, common[1]]) * rng.choice([-1.0, 1.0], (300, 1, 1))
+        moved = moved_points(system, q, drones[None] + errors + shift)
+        rest = moved_points(system, q, drones[None])[0]
+        displacement = np.linalg.norm(moved - rest, axis=-1)  # (300, P)
+        bound = displacement_bound(system, q, POINTS, common, own)[0]
+        assert np.all(displacement <= bound * 1.02 + 1e-4), (displacement.max(0), bound)
+        worst.append(displacement.max(0) / bound)
+    assert np.median(worst) > 0.5
