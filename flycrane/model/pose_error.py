@@ -52,7 +52,8 @@ def pose_sensitivity(system: CableSystem, q: ArrayLike) -> NDArray[np.float64]:
     m = np.zeros((len(q), 6, 9))
     for i, k in enumerate(CABLE_DRONE):
         m[:, i, 3 * k : 3 * k + 3] = u[:, i]
-    return np.linalg.solve(np.transpose(jacobian, (0, 2, 1)), m)
+    sensitivity: NDArray[np.float64] = np.linalg.solve(np.transpose(jacobian, (0, 2, 1)), m)
+    return sensitivity
 
 
 def point_sensitivity(system: CableSystem, q: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
