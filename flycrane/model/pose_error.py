@@ -52,8 +52,7 @@ def pose_sensitivity(system: CableSystem, q: ArrayLike) -> NDArray[np.float64]:
     m = np.zeros((len(q), 6, 9))
     for i, k in enumerate(CABLE_DRONE):
         m[:, i, 3 * k : 3 * k + 3] = u[:, i]
-    sensitivity: NDArray[np.float64] = np.linalg.solve(np.transpose(jacobian, (0, 2, 1)), m)
-    return sensitivity
+    return np.asarray(np.linalg.solve(np.transpose(jacobian, (0, 2, 1)), m), dtype=np.float64)
 
 
 def point_sensitivity(system: CableSystem, q: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
