@@ -13,7 +13,7 @@ gives at the planned configuration (common part, and each drone's own part as tw
 of the model's relative bound: three errors pairwise within r are each within 2r/3 of
 their mean). Prints the bound's least, median and largest value against the fixed
 clearance the plan keeps, the flown displacement's median and largest, and how many
-samples the bound covers. BENCHMARKS.md ("Planner v3: robust margins") records the runs.
+samples the bound covers. BENCHMARKS.md ("Planner v3", "Robust margins") records the runs.
 """
 
 from __future__ import annotations
