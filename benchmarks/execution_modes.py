@@ -22,24 +22,11 @@ import argparse
 import json
 import random
 import statistics
-import subprocess
-import sys
 from pathlib import Path
 
+from sitl_seeds import flycrane, seeds  # the seeds' syntax and the CLI runner, shared
+
 FAULT_KINDS = ("gps", "link", "mode", "motor")
-
-
-def seeds(text: str) -> list[int]:
-    """``0-9`` or ``3,5,8``."""
-    if "-" in text:
-        first, last = (int(x) for x in text.split("-"))
-        return list(range(first, last + 1))
-    return [int(x) for x in text.split(",")]
-
-
-def flycrane(*args: str) -> subprocess.CompletedProcess:
-    command = [sys.executable, "-m", "flycrane.cli", *args]
-    return subprocess.run(command, capture_output=True, text=True, timeout=1800)
 
 
 def plan(scene: str, seed: int, out: Path) -> dict:
