@@ -29,7 +29,8 @@ class SitlSettings(BaseSettings):
         10.0,
         gt=0,
         le=50,
-        description="simulated seconds per wall second; three instances keep x10 on 2 cores",
+        description="simulated seconds per wall second (the ground's pauses count this many "
+        "times over in the drones' time)",
     )
     min_rate: float = Field(
         0.2,
@@ -46,16 +47,16 @@ class SitlSettings(BaseSettings):
     calibrated_barometers: bool = Field(
         True,
         description="boot with BARO_GND_TEMP 15 C, the temperature of SITL's atmosphere: it "
-        "otherwise converts pressure with a temperature guessed per instance (25-31 C), which "
-        "reads heights 4.6-7 % high and differently on each drone",
+        "otherwise converts pressure with a temperature guessed per instance, which reads "
+        "heights high and differently on each drone (docs/missions.md)",
     )
 
     gyro_drift: bool = Field(
         False,
-        description="keep SITL's artificial gyro drift (SIM_DRIFT_SPEED 0.05 deg/s per minute "
-        "since boot, a 10-minute triangle): the EKF's attitude lags the ramp by 0.1-0.2 deg, "
-        "and every drone then holds 2-5 cm north-west of its target (south-east after 5 "
-        "minutes), all alike; a real gyro's bias settles after warm-up and the EKF follows it",
+        description="keep SITL's artificial gyro drift (SIM_DRIFT_SPEED, a 10-minute "
+        "triangle): the EKF's attitude lags the ramp and every drone holds a few centimetres "
+        "off its target, all alike (docs/missions.md); a real gyro's bias settles after "
+        "warm-up and the EKF follows it",
     )
 
     @property
