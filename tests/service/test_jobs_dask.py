@@ -13,7 +13,7 @@ import pytest
 from distributed import Client
 
 from flycrane.world.scene import SCENES_DIR
-from service.jobs import WORKER_DIED
+from service.worker import WORKER_DIED
 from tests.service.conftest import running_service, wait_finished, wait_progress, wait_status
 
 RESCUE = {"name": "rescue on dask", "planner": {"seed": 0, "time_budget": 60}}
