@@ -84,11 +84,14 @@ class DaskExecutor(Executor):
     worker (up to its ``allowed-failures``), so a job may start twice.
     """
 
-    def __init__(self, address: str, timeout: float = 30.0) -> None:
+    def __init__(self, address: str, timeout: float | None = None) -> None:
+        """``timeout`` [s] to connect; None: Dask's ``distributed.comm.timeouts.connect``
+        (30 s unless configured, e.g. ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=5s``)."""
         from distributed import Client
 
         self.address = address
-        self.client = Client(address, timeout=timeout, set_as_default=False)
+        waits = {} if timeout is None else {"timeout": timeout}
+        self.client = Client(address, set_as_default=False, **waits)
         self._executor = self.client.get_executor(pure=False)
 
     def submit(self, fn: Any, /, *args: Any, **kwargs: Any) -> Any:
