@@ -60,7 +60,9 @@ class Settings(BaseSettings):
         32, ge=1, description="tasks queued or running at once; more are refused with 503"
     )
     max_request_bytes: int = Field(1_000_000, ge=1024, description="largest request body")
-    max_time_budget: float = Field(600.0, gt=0, description="largest planner time budget [s]")
+    max_time_budget: float = Field(
+        600.0, gt=0, description="largest planner time budget and improve time [s]"
+    )
     api_token: SecretStr | None = Field(
         None,
         description="bearer token for every task endpoint (reads too, unless read_token or "

@@ -1,8 +1,9 @@
-"""Planner selection and the planning run: plan, smooth, polish, measure.
+"""Planner selection and the planning run: plan, smooth, polish, refine, measure.
 
 :class:`PlannerOptions` is the user-facing schema (tasks, CLI, benchmark); :func:`plan`
 runs the chosen planner, smooths its path with random shortcuts (cost-aware for the
-cost-aware planners), polishes its formation (bitrrt's by default) and computes the path
+cost-aware planners), polishes its formation (bitrrt's by default), lowers its average
+cost in the time left for it (:mod:`flycrane.planning.refinement`) and computes the path
 metrics.
 """
 
@@ -24,6 +25,7 @@ from flycrane.planning.algorithms.trrt import TRRT, TRRTConfig
 from flycrane.planning.formation_polish import PolishConfig, polish_formation
 from flycrane.planning.interfaces import CompiledChecker, Planner
 from flycrane.planning.metrics import PathMetrics, path_metrics
+from flycrane.planning.refinement import RefinementConfig, refine_path
 from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
 from flycrane.planning.state_space import ConfigurationSpace
@@ -37,7 +39,8 @@ TRRT_ONLY = ("goal_bias", "goal_connection", "init_temperature", "refinement_rat
 class PlannerOptions(BaseModel):
     """Which planner, with which parameters (default: ``bitrrt``, which solves the users'
     scenes T-RRT does not, and whose polished paths, where T-RRT solves, cost less and keep
-    every margin of Fig. 6 at least as well: BENCHMARKS.md "Planner v2"; in scenes with
+    every margin of Fig. 6 at least as well: BENCHMARKS.md "Planner v2"; ``improve_time``
+    refines them to a few times lower average cost on request; with a payload given as
     triangle meshes, which bitrrt does not check, the default is ``trrt``, the paper's
     T-RRT)."""
 
@@ -74,6 +77,16 @@ class PlannerOptions(BaseModel):
         description="reshape the formation a little at the waypoints to raise the path's "
         "least thrust margin and headroom (flycrane/planning/formation_polish.py); None: "
         "on for bitrrt, off for the paper's planners and OMPL's",
+    )
+    improve_time: float = Field(
+        0.0,
+        ge=0,
+        le=3_600,
+        description="seconds to lower the path's average cost after smoothing and polish, "
+        "keeping it valid and its least margins (flycrane/planning/refinement.py; a few "
+        "seconds suffice, it stops once converged); 0, the default: off, because the refined "
+        "paths took longer to fly and came closer to obstacles on SITL (BENCHMARKS.md "
+        '"Anytime improvement")',
     )
 
     @model_validator(mode="after")
@@ -181,7 +194,7 @@ class PlanningOutcome:
     result: PlannerResult
     path: NDArray[np.float64]  #: smoothed path (M, 9); empty unless solved
     metrics: PathMetrics | None  #: of the smoothed path
-    smoothing_time: float  #: seconds spent smoothing and polishing
+    smoothing_time: float  #: seconds spent smoothing, polishing and refining
 
 
 def plan(
@@ -196,7 +209,7 @@ def plan(
     algorithm: Algorithm | None = None,
 ) -> PlanningOutcome:
     """Plan within ``options.time_budget``, then smooth, polish (:meth:`PlannerOptions.
-    polishes`) and measure the path.
+    polishes`), refine for at most ``options.improve_time`` and measure the path.
     ``planner``: one built with settings the options do not carry (benchmarks of variants);
     by default :func:`make_planner`'s. ``algorithm``: the one that runs, where the caller
     resolved it already (:meth:`PlannerOptions.algorithm_for`)."""
@@ -224,6 +237,16 @@ def plan(
             validity.system,
             PolishConfig(),
             termination=TerminationCondition(float("inf"), should_stop),
+        )
+    if options.improve_time > 0:
+        smooth = refine_path(
+            smooth,
+            space,
+            validity,
+            validity.system,
+            RefinementConfig(),
+            TerminationCondition(options.improve_time, should_stop),
+            seed=options.seed,
         )
     elapsed = time.perf_counter() - clock
     return PlanningOutcome(result, smooth, path_metrics(smooth, space, validity.cost), elapsed)

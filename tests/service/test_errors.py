@@ -30,6 +30,7 @@ def client(tmp_path_factory):
         ({"start": [*RESCUE_START[:6], 1.45, 1.45, 1.45]}, ["body", "start"], "lowest tension"),
         ({"goal": [0, 0, 7.0, 0, 0, 0, 1, 1, 1]}, ["body", "goal"], "footbridge hits"),
         ({"planner": {"time_budget": 10_000}}, ["body", "planner", "time_budget"], "at most"),
+        ({"planner": {"improve_time": 3_000}}, ["body", "planner", "improve_time"], "at most"),
         ({"planner": {"algorithm": "astar"}}, ["body", "planner", "algorithm"], "trrt"),
         ({"colour": "red"}, ["body", "colour"], "not permitted"),
     ],

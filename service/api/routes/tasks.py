@@ -45,8 +45,13 @@ def _record(state: ServiceState, task_id: str) -> TaskRecord:
 def _check_limits(task: TaskSpec, state: ServiceState) -> None:
     """Refuse what the settings do not allow, and files named over HTTP."""
     limit = state.settings.max_time_budget
-    if task.planner.time_budget > limit:
-        raise InputError([FieldProblem("planner.time_budget", f"at most {limit:g} s here")])
+    problems = [
+        FieldProblem(f"planner.{name}", f"at most {limit:g} s here")
+        for name in ("time_budget", "improve_time")
+        if getattr(task.planner, name) > limit
+    ]
+    if problems:
+        raise InputError(problems)
     require_served_task(task)
 
 
