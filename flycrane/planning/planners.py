@@ -3,8 +3,8 @@
 :class:`PlannerOptions` is the user-facing schema (tasks, CLI, benchmark); :func:`plan`
 runs the chosen planner, smooths its path with random shortcuts (cost-aware for the
 cost-aware planners), polishes its formation (bitrrt's by default), lowers its average
-cost in the time left for it (:mod:`flycrane.planning.refinement`) and computes the path
-metrics.
+cost when asked to (``improve_time``, :mod:`flycrane.planning.refinement`) and computes the
+path metrics.
 """
 
 from __future__ import annotations
