@@ -6,14 +6,15 @@ faulted flights, and print how in step and how safe each was.
     .venv/bin/python benchmarks/execution_modes.py --scenes rescue --seeds 0-11 \\
         --faults 1 --modes stream --out execution-faults
 
-Each (scene, seed) is planned once by ``flycrane plan`` (the default planner, the ``sitl``
-position-error model), then flown by ``flycrane fly-sitl --mode MODE`` (its own private
-network namespace, simulators stopped by PID). With ``--faults K``, each flight gets one
-fault drawn from a generator seeded by the task's seed: a kind among ``gps``, ``link``,
-``mode`` and ``motor`` (0.8 of one motor's thrust), a drone, and a plan time between 20 %
-and 70 % of the plan. Figures are the flight report's (true positions from SIM_STATE,
-estimates from the autopilots, one common clock); BENCHMARKS.md ("Execution in step")
-records the runs. Results are kept in ``--out``: a rerun flies only what is missing.
+Each (scene, seed) is planned once by ``flycrane plan`` (the default planner, or the options
+``--planner`` gives; the ``sitl`` position-error model), then flown by ``flycrane fly-sitl
+--mode MODE`` (its own private network namespace, simulators stopped by PID). With
+``--faults K``, each flight gets one fault drawn from a generator seeded by the task's
+seed: a kind among ``gps``, ``link``, ``mode`` and ``motor`` (0.8 of one motor's thrust),
+a drone, and a plan time between 20 % and 70 % of the plan. Figures are the flight
+report's (true positions from SIM_STATE, estimates from the autopilots, one common clock);
+BENCHMARKS.md ("Execution in step") records the runs. Results are kept in ``--out``: a
+rerun flies only what is missing.
 """
 
 from __future__ import annotations
@@ -29,12 +30,13 @@ from sitl_seeds import flycrane, seeds  # the seeds' syntax and the CLI runner, 
 FAULT_KINDS = ("gps", "link", "mode", "motor")
 
 
-def plan(scene: str, seed: int, out: Path) -> dict:
-    """The task's summary, planned once into ``out``."""
+def plan(scene: str, seed: int, out: Path, planner: dict) -> dict:
+    """The task's summary, planned once into ``out`` (``planner``: options beside the
+    seed and the budget)."""
     summary_file = out / "summary.json"
     if not summary_file.exists():
         out.mkdir(parents=True, exist_ok=True)
-        task = {"scene": scene, "planner": {"seed": seed, "time_budget": 120},
+        task = {"scene": scene, "planner": {**planner, "seed": seed, "time_budget": 120},
                 "mission": {"position_error": "sitl"}}  # fmt: skip
         (out / "task.in.json").write_text(json.dumps(task))
         flycrane("plan", str(out / "task.in.json"), "--out", str(out))
@@ -143,12 +145,14 @@ def main() -> None:
     parser.add_argument("--faults", type=int, default=0, help="faults per flight (0 or 1)")
     parser.add_argument("--speedup", type=float, default=5.0)
     parser.add_argument("--out", type=Path, default=Path("execution-modes"))
+    parser.add_argument("--planner", type=json.loads, default={},
+                        help='planner options as JSON, e.g. \'{"improve_time": 5}\'')  # fmt: skip
     args = parser.parse_args()
     results = []
     for scene in args.scenes:
         for seed in args.seeds:
             task_dir = args.out / f"{scene}-{seed}" / "plan"
-            summary = plan(scene, seed, task_dir)
+            summary = plan(scene, seed, task_dir, args.planner)
             if summary["status"] != "done":
                 print(f"{scene} {seed}: no mission: {summary['reason'][:160]}", flush=True)
                 continue
