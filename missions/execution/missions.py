@@ -53,11 +53,16 @@ class MissionsExecutor(Executor):
         each booted: the same wall instant is a different instant on each. So each release
         goes out when its vehicle's own clock reaches the common release time (the
         vehicles' clocks, :mod:`.vehicles`); vehicles on one clock get them back to back."""
-        when = self.present() + RELEASE_LEAD_S
-        due = []
         now = time.monotonic()
-        for k, vehicle in enumerate(self.vehicles):
-            present = vehicle.common_time(now)
+        # A clock runs on whether its vehicle is heard or not: a stale last message is a
+        # late one, not a stopped clock (what caps the estimate for steering targets).
+        presents = [vehicle.common_time(now, capped=False) for vehicle in self.vehicles]
+        known = [p for p in presents if p is not None]
+        if not known:
+            raise RuntimeError("no vehicle's clock is known")
+        when = max(known) + RELEASE_LEAD_S
+        due = []
+        for k, present in enumerate(presents):
             lag = 0.0 if present is None else when - present
             due.append((now + (lag + delays[k]) / self.speedup, k))
         send_at = [at for at, _ in sorted(due, key=lambda d: d[1])]

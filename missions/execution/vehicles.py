@@ -124,20 +124,20 @@ class VehicleState:
             elif kind == "GPS_GLOBAL_ORIGIN":
                 self.origin = (msg.latitude * DEGREE_UNIT, msg.longitude * DEGREE_UNIT)
 
-    def boot_time(self, now: float | None = None) -> float | None:
-        """The vehicle's boot time [s] at ground monotonic time ``now`` (module
-        docstring)."""
+    def boot_time(self, now: float | None = None, capped: bool = True) -> float | None:
+        """The vehicle's boot time [s] at ground monotonic time ``now`` (module docstring;
+        not ``capped``: carried forward however old its last message, what a clock that
+        runs on whether heard or not reads)."""
         with self._lock:
             if not self._stamps:
                 return None
             stamps = list(self._stamps)
         now = time.monotonic() if now is None else now
-        latest = stamps[-1][0] + self.max_extrapolation
         carried = max(boot + (now - at) * self.speedup for boot, at in stamps)
-        return min(carried, latest)
+        return min(carried, stamps[-1][0] + self.max_extrapolation) if capped else carried
 
-    def common_time(self, now: float | None = None) -> float | None:
-        boot = self.boot_time(now)
+    def common_time(self, now: float | None = None, capped: bool = True) -> float | None:
+        boot = self.boot_time(now, capped)
         return None if boot is None or self.offset is None else boot + self.offset
 
     def last_heard(self) -> float | None:

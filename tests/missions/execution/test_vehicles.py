@@ -1,0 +1,42 @@
+"""A vehicle's clock as the ground reckons it from stamped messages (analytic cases)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from missions.execution.vehicles import VehicleState
+
+
+class Link:
+    def add_listener(self, kinds, listener) -> None:
+        self.listener = listener
+
+
+def heard(state: VehicleState, kind: str, **fields) -> None:
+    state._on(SimpleNamespace(get_type=lambda: kind, **fields))
+
+
+def test_a_silent_vehicle_is_capped_for_targets_and_carried_on_for_a_release(monkeypatch):
+    """Speed-up 5: heard at boot 10 s, then 0.1 s of ground time passes in silence. Its
+    clock has run 0.5 s; targets are not aimed past 0.1 s after its last message."""
+    ground = [100.0]
+    monkeypatch.setattr("missions.execution.vehicles.time.monotonic", lambda: ground[0])
+    state = VehicleState(Link(), speedup=5.0, max_extrapolation=0.1)
+    heard(state, "SYSTEM_TIME", time_boot_ms=10_000, time_unix_usec=1_000_000_000)
+    ground[0] += 0.1
+    assert state.boot_time() == pytest.approx(10.1)
+    assert state.boot_time(capped=False) == pytest.approx(10.5)
+    assert state.common_time(capped=False) == pytest.approx(1000.5)
+
+
+def test_the_least_delayed_message_sets_the_clock(monkeypatch):
+    """Two messages, the second 0.05 s of ground time late: the first says more."""
+    ground = [100.0]
+    monkeypatch.setattr("missions.execution.vehicles.time.monotonic", lambda: ground[0])
+    state = VehicleState(Link(), speedup=5.0, max_extrapolation=10.0)
+    heard(state, "LOCAL_POSITION_NED", time_boot_ms=10_000, x=0.0, y=0.0, z=0.0)
+    ground[0] += 0.15  # 0.75 s of the vehicle's time; its next message stamped 10.5 s
+    heard(state, "LOCAL_POSITION_NED", time_boot_ms=10_500, x=0.0, y=0.0, z=0.0)
+    assert state.boot_time() == pytest.approx(10.75)
