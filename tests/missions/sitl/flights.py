@@ -79,14 +79,14 @@ def stalled(out: Path, extra: tuple[str, ...]) -> bool:
     record = json.loads(record_file.read_text())
     faults = [extra[i + 1] for i, word in enumerate(extra[:-1]) if word == "--fault"]
     cut = [(int(f.split(":")[1]), float(f.split(":")[2])) for f in faults if f[:5] == "link:"]
-    return any(
-        fault["kind"] == "link"
-        and not any(
-            drone == fault["drone"] and fault["time"] - record["start"] >= at - 0.1
-            for drone, at in cut
+    start = record["start"]  # None: stopped before the plan's clock existed
+
+    def explained(fault: dict) -> bool:
+        return start is not None and any(
+            drone == fault["drone"] and fault["time"] - start >= at - 0.1 for drone, at in cut
         )
-        for fault in record["faults"]
-    )
+
+    return any(fault["kind"] == "link" and not explained(fault) for fault in record["faults"])
 
 
 def fly(task_dir: Path, out: Path, *extra: str) -> dict:
