@@ -85,7 +85,7 @@ class PlannerOptions(BaseModel):
         description="seconds to lower the path's average cost after smoothing and polish, "
         "keeping it valid and its least margins (flycrane/planning/refinement.py; a few "
         "seconds suffice, it stops once converged); 0, the default: off, because the refined "
-        "paths took longer to fly and came closer to obstacles on SITL (BENCHMARKS.md "
+        "paths took longer to fly and one came closer to an obstacle on SITL (BENCHMARKS.md "
         '"Anytime improvement")',
     )
 
