@@ -55,9 +55,9 @@ RELEASE_SLACK_S = 0.01 * SPEEDUP
 
 def fly_released(task_dir: Path, tmp_path: Path, *extra: str, late: float = 0.0) -> dict:
     """Fly; a flight the ground released more than RELEASE_SLACK_S off the intended spread
-    (``late``) says nothing of the missions, and is flown once more: in two of the four
+    (``late``) says nothing of the missions, and is flown once more: in two of three
     suite runs before this, one drone left 0.16 and 0.38 s after the others (the Puzzle
-    then touched the slab)."""
+    then touched the slab), for a cause not found (BENCHMARKS.md "Execution in step")."""
     for attempt in range(2):
         report = fly(task_dir, tmp_path / f"flight{attempt}", *extra)
         if abs(report["release_spread"] - late) <= RELEASE_SLACK_S:
