@@ -22,6 +22,7 @@ import json
 import logging
 import threading
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from itertools import combinations
@@ -129,7 +130,7 @@ class ExecutionRecord:
         return GroupClock(self.start, self.duration, segments)
 
 
-class Executor:
+class Executor(ABC):
     """Plays a :class:`DroneTrajectory` on three vehicles from one clock (module
     docstring). Subclasses hand the clock over: :meth:`engage`, :meth:`_command`."""
 
@@ -215,9 +216,9 @@ class Executor:
         except MavlinkError as error:
             logger.info("%s: %s not given yet: %s", link.name, name, error)
 
+    @abstractmethod
     def engage(self, timeout: float) -> None:
         """Hand the drones over from their hold to the executor."""
-        raise NotImplementedError
 
     def start(self) -> ExecutionRecord:
         """Start the plan ``start_delay`` of common time from now, and play it (a
@@ -379,12 +380,12 @@ class Executor:
         if abs(target - self.clock.target) > 0.02:
             self.clock.steer(t, target, self.options.policy.braking)
 
-    def _lost(self, k: int) -> None:
+    def _lost(self, k: int) -> None:  # noqa: B027 - a hook; nothing to do by default
         """Drone k's link was found lost (before it counts no more)."""
 
+    @abstractmethod
     def _command(self, t: float) -> None:
         """Hand the clock to the vehicles at common time ``t``."""
-        raise NotImplementedError
 
     def restore_mode(self, drone: int) -> None:
         """Put ``drone`` (1-based) back into the execution's flight mode (the operator
