@@ -8,7 +8,8 @@ faulted flights, and print how in step and how safe each was.
 
 Each (scene, seed) is planned once by ``flycrane plan`` (the default planner, or the options
 ``--planner`` gives; the ``sitl`` position-error model), then flown by ``flycrane fly-sitl
---mode MODE`` (its own private network namespace, simulators stopped by PID). With
+--mode MODE`` (its own private network namespace, simulators stopped by PID; ``--lead``
+passed on). With
 ``--faults K``, each flight gets one fault drawn from a generator seeded by the task's
 seed: a kind among ``gps``, ``link``, ``mode`` and ``motor`` (0.8 of one motor's thrust),
 a drone, and a plan time between 20 % and 70 % of the plan. Figures are the flight
@@ -51,12 +52,20 @@ def fault_of(seed: int, duration: float) -> str:
     return f"{kind}:{drone}:{at}" + (":0.8" if kind == "motor" else "")
 
 
-def fly(task_dir: Path, out: Path, mode: str, speedup: float, fault: str | None) -> dict:
+def fly(
+    task_dir: Path,
+    out: Path,
+    mode: str,
+    speedup: float,
+    fault: str | None,
+    lead: tuple[float, float] | None = None,
+) -> dict:
     """One flight's figures (kept in ``out/result.json``)."""
     result_file = out / "result.json"
     if result_file.exists():
         return json.loads(result_file.read_text())
     extra = ["--fault", fault] if fault else []
+    extra += ["--lead", *map(str, lead)] if lead else []
     done = flycrane("fly-sitl", str(task_dir), "--out", str(out), "--mode", mode,
                     "--speedup", str(speedup), *extra)  # fmt: skip
     result: dict = {"mode": mode, "fault": fault, "status": done.returncode}
@@ -145,6 +154,8 @@ def main() -> None:
     parser.add_argument("--faults", type=int, default=0, help="faults per flight (0 or 1)")
     parser.add_argument("--speedup", type=float, default=5.0)
     parser.add_argument("--out", type=Path, default=Path("execution-modes"))
+    parser.add_argument("--lead", nargs=2, type=float, metavar=("HORIZONTAL", "VERTICAL"),
+                        help="fly-sitl's --lead (default: the mode's)")  # fmt: skip
     parser.add_argument("--planner", type=json.loads, default={},
                         help='planner options as JSON, e.g. \'{"improve_time": 5}\'')  # fmt: skip
     args = parser.parse_args()
@@ -160,8 +171,9 @@ def main() -> None:
             fault = fault_of(seed, duration) if args.faults else None
             for mode in args.modes:
                 name = mode + (f"-{fault.replace(':', '_')}" if fault else "")
+                name += f"-lead{args.lead[0]:g}_{args.lead[1]:g}" if args.lead else ""
                 out = args.out / f"{scene}-{seed}" / name
-                result = fly(task_dir, out, mode, args.speedup, fault)
+                result = fly(task_dir, out, mode, args.speedup, fault, args.lead)
                 results.append({"scene": scene, "seed": seed} | result)
                 print(f"{scene} {seed} {mode} {fault or ''}: {json.dumps(result)[:300]}",
                       flush=True)  # fmt: skip

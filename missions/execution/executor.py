@@ -56,6 +56,9 @@ GROUND_PAUSE_S = 0.1
 FOLLOWED = (FaultKind.MODE, FaultKind.FAILSAFE)
 #: How far from the clock's plan time a followed drone's progress is looked for [s].
 FOLLOW_WINDOW_S = 3.0
+#: The most a target may be ahead of its vehicle's present [s]: beyond, a lead would hide
+#: a slow vehicle rather than make up its controller's lag.
+MAX_LEAD_S = 0.3
 #: The clock's rate per second of plan time between it and a followed drone [1/s].
 FOLLOW_GAIN = 2.0
 #: A vehicle not heard for this long [s of common time] does not steer the clock: its
@@ -69,6 +72,8 @@ STREAMS = {
     "HEARTBEAT": 0.1,
     "GPS_RAW_INT": 0.1,
     "EKF_STATUS_REPORT": 0.1,
+    "ATTITUDE": 0.05,
+    "NAV_CONTROLLER_OUTPUT": 0.05,
     "SYSTEM_TIME": 0.5,
 }
 
@@ -80,15 +85,18 @@ class ExecutionOptions:
     rate_hz: float = 20.0  #: ticks per second of vehicle time (10-50)
     start_delay: float = 1.0  #: from the start command to plan time 0
     max_extrapolation: float = 0.1  #: of a vehicle's clock past its last message
-    #: targets are for this much ahead of a vehicle's present [s of common time]: what a
-    #: target takes to reach the vehicle's controller
-    lead: float = 0.03
+    #: targets are for this much ahead of a vehicle's present [s of common time],
+    #: (horizontal, vertical): what its controller lags them by on top of their way to it;
+    #: None: the executor's own :attr:`Executor.lead`
+    lead: tuple[float, float] | None = None
     policy: RatePolicy = field(default_factory=RatePolicy)
     limits: MonitorLimits = field(default_factory=MonitorLimits)
 
     def __post_init__(self) -> None:
         if not 10.0 <= self.rate_hz <= 50.0:
             raise ValueError(f"rate_hz: {self.rate_hz} is outside 10-50 Hz")
+        if self.lead is not None and not all(0.0 <= x <= MAX_LEAD_S for x in self.lead):
+            raise ValueError(f"lead: {self.lead} is outside 0-{MAX_LEAD_S} s")
 
 
 @dataclass
@@ -140,6 +148,11 @@ class Executor(ABC):
     #: onboard player keeps the clock through it, and a stop it cannot hear would split
     #: the team.
     link_loss_stops = True
+    #: How far ahead of a vehicle's present its targets are (horizontal, vertical) [s]
+    #: unless :attr:`ExecutionOptions.lead` says: ArduCopter 4.5.7's position controller,
+    #: default tuning, lags a horizontal target more than a vertical one (BENCHMARKS.md,
+    #: "Leads").
+    default_lead: tuple[float, float] = (0.0, 0.0)
 
     def __init__(
         self,
@@ -258,6 +271,11 @@ class Executor(ABC):
         p, v, a = self.trajectory.at(tau)
         return p[k], v[k] * rate, a[k] * rate * rate + v[k] * slope
 
+    @property
+    def lead(self) -> tuple[float, float]:
+        """(horizontal, vertical) [s]: the options' or the executor's own."""
+        return self.options.lead if self.options.lead is not None else self.default_lead
+
     def commanded(self, k: int, t: float) -> tuple[NDArray, NDArray, NDArray]:
         """What drone k is told at ``t``: its :meth:`target`, or its start while it is held
         back (:meth:`hold_back`)."""
@@ -330,6 +348,7 @@ class Executor(ABC):
                 ekf_flags=vehicle.ekf_flags,
                 fix_type=vehicle.fix_type,
                 error=float(tracking[k]),
+                attitude_error=vehicle.attitude_error(),
             )
         faults = self.monitor.faults(t)
         # a drone the ground cannot hear is sent nothing more, and counts no more

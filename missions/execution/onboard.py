@@ -41,6 +41,10 @@ class OnboardExecutor(Executor):
     mode = "onboard"
     expected_mode = COPTER_MODES["AUTO"]
     link_loss_stops = False
+    #: horizontally the stream's lead and 30 ms more, what the player's targets lagged
+    #: behind the stream's (it sets one every 20 ms, from the scripting thread);
+    #: BENCHMARKS.md, "Leads"
+    default_lead = (0.08, 0.0)
     resend_s = 0.5  #: [s of common time] between repeats of the current segment
 
     def __init__(self, *args, player_seq: int, **kwargs) -> None:  # type: ignore[no-untyped-def]
@@ -92,7 +96,7 @@ class OnboardExecutor(Executor):
                 continue
             start_ms = round((last.start - float(vehicle.offset or 0.0)) * 1000)
             link.send(group_time(start_ms, last.tau, last.rate, last.rate_end, last.ramp,
-                                 len(segments)))  # fmt: skip
+                                 len(segments), self.lead))  # fmt: skip
             self._sent[k] = (len(segments), t)
             self._history[k].append((t, len(segments)))
 

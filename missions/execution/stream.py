@@ -3,7 +3,8 @@
 Each drone flies in GUIDED on position + velocity + acceleration targets
 (SET_POSITION_TARGET_LOCAL_NED, :mod:`missions.mavlink.guided`), one a tick, in its local
 NED frame (:mod:`.vehicles`). The target of drone k is its trajectory at plan time
-tau(t_k), t_k its own present on the common clock, with the velocity scaled by the clock's
+tau(t_k + lead), t_k its own present on the common clock and the lead what its controller
+lags a target by (:attr:`~.executor.Executor.default_lead`), with the velocity scaled by the clock's
 rate and the acceleration by its square plus the velocity times the rate's change: slowing
 or stopping the clock slows or stops all three on the plan. ArduCopter moves a target on
 with its last velocity between two targets, so one that comes late costs little; without
@@ -18,6 +19,9 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+from numpy.typing import NDArray
+
 from missions.autopilots.ardupilot import COPTER_MODES
 from missions.execution.executor import Executor
 from missions.geodesy import ned_from_enu
@@ -29,6 +33,7 @@ class StreamExecutor(Executor):
 
     mode = "stream"
     expected_mode = COPTER_MODES["GUIDED"]
+    default_lead = (0.05, 0.0)
 
     def engage(self, timeout: float) -> None:
         """Targets at plan time 0 (each drone's start, where it holds), then GUIDED on the
@@ -51,16 +56,25 @@ class StreamExecutor(Executor):
             time.sleep(0.02 / self.speedup)
 
     def _send_targets(self) -> None:
-        """Every reachable drone's target at its own present."""
+        """Every reachable drone's target, its :attr:`lead` ahead of its own present."""
         for k, (link, vehicle) in enumerate(zip(self.links, self.vehicles, strict=True)):
             boot = vehicle.boot_time()
             if k in self.cut or boot is None or not self.frames:
                 continue
             now = boot + float(vehicle.offset or 0.0)
-            p, v, a = self.commanded(k, now + self.options.lead)
+            p, v, a = self._led(k, now)
             local = self.frames[k].local_position(p + self.trajectory.homes[k])
             link.send(position_target(round(boot * 1000), link.target, local,
                                       ned_from_enu(v), ned_from_enu(a)))  # fmt: skip
+
+    def _led(self, k: int, now: float) -> tuple[NDArray, NDArray, NDArray]:
+        """Drone k's target :attr:`lead` ahead of its present ``now``: east and north
+        from the horizontal lead, up from the vertical."""
+        horizontal, vertical = self.lead
+        across = self.commanded(k, now + horizontal)
+        up = self.commanded(k, now + vertical)
+        p, v, a = (np.concatenate([x[:2], z[2:]]) for x, z in zip(across, up, strict=True))
+        return p, v, a
 
     def _command(self, t: float) -> None:
         self._send_targets()

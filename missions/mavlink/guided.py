@@ -80,13 +80,20 @@ def position_target(
 
 
 def group_time(
-    start_ms: int, tau0: float, rate: float, rate_end: float, ramp: float, sequence: int
+    start_ms: int,
+    tau0: float,
+    rate: float,
+    rate_end: float,
+    ramp: float,
+    sequence: int,
+    lead: tuple[float, float] = (0.0, 0.0),
 ) -> MessageSpec:
     """DEBUG_FLOAT_ARRAY ``GT``: plan time ``tau0`` [s] at the vehicle's boot time
     ``start_ms``, the rate going from ``rate`` to ``rate_end`` over ``ramp`` [s], then
     staying; ``sequence`` orders the segments (:class:`~missions.execution.group_clock.
-    Segment`, in the vehicle's clock)."""
-    data = [float(tau0), float(rate), float(rate_end), float(ramp), float(sequence)]
+    Segment`, in the vehicle's clock); the player sets its targets ``lead`` (horizontal,
+    vertical) [s] ahead of its present."""
+    data = [float(tau0), float(rate), float(rate_end), float(ramp), float(sequence), *lead]
     return (
         "DEBUG_FLOAT_ARRAY",
         {

@@ -25,6 +25,7 @@ import sys
 from pathlib import Path
 
 from flycrane.errors import FlyCraneError
+from missions.execution.executor import MAX_LEAD_S
 from missions.flight_report import report_sitl_flight, write_report
 from missions.sitl.faults import KINDS, FaultPlan
 from missions.sitl.harness import SitlFlightOptions, fly_on_sitl
@@ -55,6 +56,7 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
         parameter_overrides=(overrides, overrides, overrides),
         faults=tuple(args.fault),
         on_fault=args.on_fault,
+        lead=None if args.lead is None else (args.lead[0], args.lead[1]),
     )
     out = Path(args.out)
     try:
@@ -98,6 +100,16 @@ def _parameter(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
 
 
+def _lead(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not 0.0 <= value <= MAX_LEAD_S:
+        raise argparse.ArgumentTypeError(f"{value} s is outside 0-{MAX_LEAD_S} s")
+    return value
+
+
 def _fault(text: str) -> FaultPlan:
     try:
         return FaultPlan.parse(text)
@@ -122,6 +134,12 @@ def register(commands: argparse._SubParsersAction) -> None:
     command.add_argument(
         "--rate-hz", type=float, default=20.0,
         help="targets per second in stream mode, ticks of the clock otherwise (10-50)",
+    )  # fmt: skip
+    command.add_argument(
+        "--lead", nargs=2, type=_lead, metavar=("HORIZONTAL", "VERTICAL"),
+        help="targets this far ahead of each drone's present [s], what its position "
+        "controller lags them by (stream, onboard; default: the mode's, measured on "
+        "ArduCopter 4.5.7's default tuning)",
     )  # fmt: skip
     command.add_argument("--speedup", type=float, help="simulation speed-up (default: 10)")
     command.add_argument(

@@ -92,6 +92,8 @@ class SitlFlightOptions:
     mode: Mode = "missions"
     stream_hz: float = 50.0  #: recorded telemetry
     rate_hz: float = 20.0  #: the executor's ticks (stream: targets per second)
+    #: targets ahead of each drone's present (horizontal, vertical) [s]; None: the mode's
+    lead: tuple[float, float] | None = None
     settle_s: float = 3.0  #: steady hover at the hold before the release
     settle_speed: float = 0.05  #: [m/s] "steady": every drone slower than this
     #: [m] "steady": and every drone's estimate this close to its hold. Slow alone is not
@@ -239,6 +241,7 @@ def _executor(
     clearance = plan.model.obstacle_clearance
     execution = ExecutionOptions(
         rate_hz=options.rate_hz,
+        lead=options.lead,
         policy=RatePolicy(tracking_tolerance=clearance, formation_tolerance=clearance),
         limits=MonitorLimits(stray_distance=2 * clearance, min_fix_type=plan.model.min_fix_type),
     )

@@ -11,7 +11,8 @@ and ends the item (vehicle:nav_script_time_done), so the mission goes on to its 
 Group time arrives as DEBUG_FLOAT_ARRAY (350) named "GT": time_usec = t0, this vehicle's
 millis() at which plan time is data[0] (tau0, s); the rate is data[1] at t0 and goes
 linearly to data[2] over data[3] seconds, then stays; data[4] is the segment's sequence
-number. A segment governs from its t0 until a later one's: one that arrives before its t0
+number; data[5] and data[6] how far ahead of now [s] the targets are, horizontally and
+vertically (what the position controller lags them by). A segment governs from its t0 until a later one's: one that arrives before its t0
 (this vehicle's clock behind the ground's) waits. Before the first, the player holds the
 trajectory's first point.
 
@@ -35,7 +36,7 @@ mavlink:init(8, 1)
 mavlink:register_rx_msgid(DEBUG_FLOAT_ARRAY)
 
 local trajectory = nil  -- {file, n, dt, duration, first, count, window}
-local segment = nil     -- the governing one: {t0, tau0, rate, rate_end, ramp, seq}
+local segment = nil     -- the governing one: {t0, tau0, rate, rate_end, ramp, seq, lead_h, lead_v}
 local waiting = {}      -- later ones whose t0 is still ahead, by sequence
 local MAX_WAITING = 8
 local active = nil      -- the NAV_SCRIPT_TIME item being played
@@ -59,12 +60,13 @@ local function open_trajectory()
     file:close()
     return nil, "short header"
   end
-  local magic, n, dt = string.unpack("<c4I4f", header)
+  local magic, n, dt, lat, lon = string.unpack("<c4I4fi4i4", header)
   if magic ~= "FCT1" or n < 2 or dt <= 0 or size < HEADER_BYTES + n * ROW_BYTES then
     file:close()
     return nil, "not a trajectory of this version"
   end
-  return {file = file, n = n, dt = dt, duration = (n - 1) * dt, first = -1, count = 0}
+  return {file = file, n = n, dt = dt, duration = (n - 1) * dt, first = -1, count = 0,
+          lat = lat, lon = lon}
 end
 
 local function row(k)
@@ -112,27 +114,31 @@ local function receive()
     end
     if string.unpack("<I3", msg, id_at) == DEBUG_FLOAT_ARRAY then
       -- DEBUG_FLOAT_ARRAY wire order: time_usec u64, array_id u16, name c10, data f32[58]
-      local t0, _, _, name, tau0, rate, rate_end, ramp, seq =
-        string.unpack("<I4I4I2c10fffff", msg, payload)
+      local t0, _, _, name, tau0, rate, rate_end, ramp, seq, lead_h, lead_v =
+        string.unpack("<I4I4I2c10fffffff", msg, payload)
       name = name:gsub("%z", "")
       local last = waiting[#waiting] or segment
       if name == "GT" and (last == nil or seq > last.seq) and #waiting < MAX_WAITING then
-        waiting[#waiting + 1] =
-          {t0 = t0, tau0 = tau0, rate = rate, rate_end = rate_end, ramp = ramp, seq = seq}
+        waiting[#waiting + 1] = {t0 = t0, tau0 = tau0, rate = rate, rate_end = rate_end,
+                                 ramp = ramp, seq = seq, lead_h = lead_h, lead_v = lead_v}
       end
     end
   end
 end
 
--- plan time, rate and the rate's change at this vehicle's millis() now
-local function group_time(now)
+-- the segment that governs at this vehicle's millis() now
+local function advance(now)
   while waiting[1] and (segment == nil or now >= waiting[1].t0) do
     segment = table.remove(waiting, 1)
   end
+end
+
+-- plan time, rate and the rate's change at ``ahead`` seconds past millis() now
+local function group_time(now, ahead)
   if not segment then
     return 0, 0, 0
   end
-  local dt = math.max(0, (now - segment.t0) * 0.001)
+  local dt = math.max(0, (now - segment.t0) * 0.001 + ahead)
   local s = segment
   if s.ramp > 0 and dt < s.ramp then
     local slope = (s.rate_end - s.rate) / s.ramp
@@ -144,19 +150,32 @@ end
 
 local target, velocity, acceleration = Vector3f(), Vector3f(), Vector3f()
 
-local function play(now)
-  local tau, rate, slope = group_time(now)
+-- the trajectory ``ahead`` seconds past now: position, velocity and acceleration (NED)
+local function led(now, ahead)
+  local tau, rate, slope = group_time(now, ahead)
   if tau >= trajectory.duration then
     tau, rate, slope = trajectory.duration, 0, 0
   end
   local pn, pe, pd, vn, ve, vd, an, ae, ad = sample(tau)
   -- the file holds d/dtau; the vehicle needs d/dt
   local r2 = rate * rate
+  return pn, pe, pd, vn * rate, ve * rate, vd * rate,
+         an * r2 + vn * slope, ae * r2 + ve * slope, ad * r2 + vd * slope
+end
+
+local function play(now)
+  advance(now)
+  local lead_h, lead_v = 0, 0
+  if segment then
+    lead_h, lead_v = segment.lead_h, segment.lead_v
+  end
+  local pn, pe, _, vn, ve, _, an, ae, _ = led(now, lead_h)
+  local _, _, pd, _, _, vd, _, _, ad = led(now, lead_v)
   target:x(pn + home_offset[1]); target:y(pe + home_offset[2]); target:z(pd + home_offset[3])
-  velocity:x(vn * rate); velocity:y(ve * rate); velocity:z(vd * rate)
-  acceleration:x(an * r2 + vn * slope); acceleration:y(ae * r2 + ve * slope)
-  acceleration:z(ad * r2 + vd * slope)
+  velocity:x(vn); velocity:y(ve); velocity:z(vd)
+  acceleration:x(an); acceleration:y(ae); acceleration:z(ad)
   vehicle:set_target_posvelaccel_NED(target, velocity, acceleration, true, yaw, false, 0, false)
+  local tau = group_time(now, 0)
   if tau >= trajectory.duration and not finished then
     finished = true
     say(INFO, "trajectory played")
@@ -173,13 +192,21 @@ local function begin(id)
   trajectory, err = open_trajectory()
   local origin = ahrs:get_relative_position_NED_origin()
   local home = ahrs:get_relative_position_NED_home()
-  if not trajectory or not origin or not home then
+  local ekf_origin = ahrs:get_origin()
+  if not trajectory or not origin or not home or not ekf_origin then
     say(WARNING, "cannot play: " .. (err or "no position"))
     vehicle:nav_script_time_done(id)
     active = nil
     return
   end
-  home_offset = {origin:x() - home:x(), origin:y() - home:y(), origin:z() - home:z()}
+  -- horizontally from the planned home (the file's), as the ground's targets: the home
+  -- set at arming lies where the estimate was then, centimetres off; vertically from
+  -- that home, whose height the mission's altitudes count from
+  local planned = Location()
+  planned:lat(trajectory.lat)
+  planned:lng(trajectory.lon)
+  local north_east = ekf_origin:get_distance_NE(planned)
+  home_offset = {north_east:x(), north_east:y(), origin:z() - home:z()}
   yaw = math.deg(ahrs:get_yaw())
   say(INFO, string.format("playing %d rows", trajectory.n))
 end
