@@ -16,7 +16,10 @@ and asked for faults at a common time (:meth:`faults`). A fault is, for one dron
 - ``failsafe``: it reports a failsafe or emergency state (HEARTBEAT system status);
 - ``ekf``: its estimate lost a flag the plan needs (EKF_STATUS_REPORT);
 - ``gps``: its fix fell below the position-error model's (GPS_RAW_INT fix type);
-- ``stray``: it is farther than ``stray_distance`` from its target.
+- ``stray``: it is farther than ``stray_distance`` from its target;
+- ``attitude``: its roll and pitch are more than ``attitude_error`` from what its own
+  attitude controller asks for: it lost authority (a weak motor, a broken propeller, a
+  snag), which shows in its attitude a tenth of a second before it strays.
 
 Each is reported once, with the common time it was detected and what was seen.
 """
@@ -40,6 +43,7 @@ class FaultKind(StrEnum):
     EKF = "ekf"
     GPS = "gps"
     STRAY = "stray"
+    ATTITUDE = "attitude"
 
 
 @dataclass(frozen=True)
@@ -63,6 +67,7 @@ class MonitorLimits:
     link_timeout: float = 0.5  #: [s] of common time without a message
     stray_distance: float = 0.25  #: [m] from its target
     min_fix_type: int = 3  #: GPS_RAW_INT fix type the position-error model needs
+    attitude_error: float = 5.0  #: [deg] of roll and pitch from the controller's target
 
 
 @dataclass
@@ -73,6 +78,7 @@ class _Drone:
     ekf_flags: int | None = None
     fix_type: int | None = None
     error: float = 0.0  #: distance to its target [m]
+    attitude_error: float = 0.0  #: [deg] from its attitude controller's target
 
 
 @dataclass
@@ -98,6 +104,7 @@ class TeamMonitor:
         ekf_flags: int | None = None,
         fix_type: int | None = None,
         error: float | None = None,
+        attitude_error: float | None = None,
     ) -> None:
         """What drone ``drone`` (0-based) reported last (only the given fields change)."""
         state = self.drones[drone]
@@ -107,6 +114,7 @@ class TeamMonitor:
             ("ekf_flags", ekf_flags),
             ("fix_type", fix_type),
             ("error", error),
+            ("attitude_error", attitude_error),
         ):
             if value is not None:
                 setattr(state, name, value)
@@ -130,6 +138,9 @@ class TeamMonitor:
             found.append((FaultKind.GPS, f"fix type {state.fix_type} < {limits.min_fix_type}"))
         if state.error > limits.stray_distance:
             found.append((FaultKind.STRAY, f"{state.error:.3f} m from its target"))
+        if state.attitude_error > limits.attitude_error:
+            found.append((FaultKind.ATTITUDE, f"{state.attitude_error:.1f} deg from the "
+                          "attitude its controller asks for"))  # fmt: skip
         return found
 
     def faults(self, t: float) -> list[Fault]:

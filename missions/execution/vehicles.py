@@ -17,6 +17,7 @@ its latest state, kept up to date by its link's reader thread.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections import deque
@@ -42,6 +43,8 @@ TELEMETRY = (
     "HOME_POSITION",
     "GPS_GLOBAL_ORIGIN",
     "MISSION_CURRENT",
+    "ATTITUDE",
+    "NAV_CONTROLLER_OUTPUT",
 )
 
 
@@ -86,6 +89,10 @@ class VehicleState:
         self.system_status: int | None = None
         self.ekf_flags: int | None = None
         self.fix_type: int | None = None
+        self.attitude: tuple[float, float] | None = None  #: roll, pitch [deg]
+        #: roll, pitch its attitude controller asks for [deg] (ArduCopter reports them in
+        #: NAV_CONTROLLER_OUTPUT)
+        self.attitude_target: tuple[float, float] | None = None
         self.position: tuple[float, NDArray[np.float64]] | None = None  #: (boot s, NED)
         self.home_down: float | None = None
         self.origin: tuple[float, float] | None = None  #: EKF origin lat, lon [deg]
@@ -115,6 +122,10 @@ class VehicleState:
                 self.position = (msg.time_boot_ms / 1000.0, np.array([msg.x, msg.y, msg.z]))
             elif kind == "GPS_RAW_INT":
                 self.fix_type = msg.fix_type
+            elif kind == "ATTITUDE":
+                self.attitude = (math.degrees(msg.roll), math.degrees(msg.pitch))
+            elif kind == "NAV_CONTROLLER_OUTPUT":
+                self.attitude_target = (float(msg.nav_roll), float(msg.nav_pitch))
             elif kind == "EKF_STATUS_REPORT":
                 self.ekf_flags = msg.flags
             elif kind == "HOME_POSITION":
@@ -139,6 +150,16 @@ class VehicleState:
     def common_time(self, now: float | None = None, capped: bool = True) -> float | None:
         boot = self.boot_time(now, capped)
         return None if boot is None or self.offset is None else boot + self.offset
+
+    def attitude_error(self) -> float | None:
+        """How far [deg] the vehicle's roll and pitch are from what its attitude controller
+        asks for (the lean a load needs is in both): a drone that cannot follow its own
+        controller has lost authority, a weak motor or a broken propeller."""
+        with self._lock:
+            if self.attitude is None or self.attitude_target is None:
+                return None
+            (roll, pitch), (roll_target, pitch_target) = self.attitude, self.attitude_target
+        return math.hypot(roll - roll_target, pitch - pitch_target)
 
     def last_heard(self) -> float | None:
         """Common time of the newest stamped message: when the vehicle was last heard, on

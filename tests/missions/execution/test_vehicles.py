@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import pytest
@@ -40,3 +41,14 @@ def test_the_least_delayed_message_sets_the_clock(monkeypatch):
     ground[0] += 0.15  # 0.75 s of the vehicle's time; its next message stamped 10.5 s
     heard(state, "LOCAL_POSITION_NED", time_boot_ms=10_500, x=0.0, y=0.0, z=0.0)
     assert state.boot_time() == pytest.approx(10.75)
+
+
+def test_the_attitude_error_is_the_tilt_from_what_the_controller_asks_for():
+    """Rolled 8 deg right and pitched 1 deg up where its controller asks for 2 and -3:
+    sqrt(6^2 + 4^2) deg, whatever the lean both share."""
+    state = VehicleState(Link(), speedup=1.0, max_extrapolation=0.1)
+    assert state.attitude_error() is None
+    heard(state, "ATTITUDE", time_boot_ms=1000, roll=math.radians(8.0), pitch=math.radians(1.0))
+    assert state.attitude_error() is None  # nothing asked for yet
+    heard(state, "NAV_CONTROLLER_OUTPUT", nav_roll=2.0, nav_pitch=-3.0)
+    assert state.attitude_error() == pytest.approx(math.hypot(6.0, 4.0))

@@ -84,6 +84,21 @@ def test_a_fault_stops_the_three_together_and_the_load_stays_safe(
     assert max(healthy) <= 1.0, stop
 
 
+def test_a_weak_motor_is_seen_by_its_attitude_and_the_team_stops_safely(
+    rescue: Path, tmp_path: Path
+):
+    """Drone 2's motor at 0.8 of its thrust mid-flight: the drone tilts away from the
+    attitude its own controller asks for before it strays from its target, and the team
+    stops on that; the load is safe through the stop (true positions)."""
+    report = fly(rescue, tmp_path, "--mode", "stream", "--fault", "motor:2:5.7:0.8")
+    assert report["verdict"]["safe"], report["verdict"]["reasons"]
+    first = execution(tmp_path)["faults"][0]
+    assert (first["drone"], first["kind"]) == (2, "attitude"), first
+    stop = report["stop"]
+    assert stop["detected_after"] <= 1.0, stop
+    assert max(stop["at_rest_after"][0], stop["at_rest_after"][2]) <= 1.0, stop
+
+
 def test_the_onboard_player_keeps_the_team_in_step_through_a_lost_link(
     rescue: Path, tmp_path: Path
 ):
