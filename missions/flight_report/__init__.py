@@ -17,6 +17,7 @@ recorded by a ground station); :func:`write_report` saves ``report.json``, ``rep
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,7 @@ from missions.execution.executor import ExecutionRecord
 from missions.export.formats import dumps
 from missions.flight_report.alignment import (
     AlignmentError,
+    Releases,
     releases_from_logs,
     releases_on_common_clock,
 )
@@ -32,7 +34,7 @@ from missions.flight_report.planned_flight import PlannedFlight
 from missions.flight_report.plot import plot_flight_report
 from missions.flight_report.record import EXECUTION_FILE, FlightRecord
 from missions.flight_report.report import FlightReport, flight_report
-from missions.flight_report.vehicle_log import read_vehicle_log
+from missions.flight_report.vehicle_log import VehicleLog, read_vehicle_log
 from missions.task.directory import TaskDirectory
 
 #: What write_report saves, and the viewer's flown-path file.
@@ -40,8 +42,22 @@ REPORT_FILE, PLOT_FILE, FLOWN_FILE = "report.json", "report.png", "flown.json"
 MCAP_FILE = "flight.mcap"
 
 
-def report_sitl_flight(flight_dir: Path) -> tuple[FlightReport, PlannedFlight]:
-    """The report of a SITL flight, on the simulators' common clock: from the first
+@dataclass(frozen=True)
+class SitlFlight:
+    """A SITL flight as read back: its record, what the drones were told, their logs, and
+    mission time on the simulators' common clock."""
+
+    flight: FlightRecord
+    record: ExecutionRecord
+    #: the plan as the drones were given it (``stream``, ``onboard``: on the group clock)
+    plan: PlannedFlight
+    vehicles: list[VehicleLog]
+    releases: Releases
+    start: float  #: common time of mission time 0 [s]
+
+
+def read_sitl_flight(flight_dir: Path) -> SitlFlight:
+    """A flight our SITL harness recorded, on the simulators' common clock: from the first
     release (``missions``), or from the executor's plan start (``stream``, ``onboard``),
     whose clock also times the plan the drones were given.
 
@@ -70,6 +86,20 @@ def report_sitl_flight(flight_dir: Path) -> tuple[FlightReport, PlannedFlight]:
         )
         trajectory = TaskDirectory(Path(flight.task_dir)).trajectory()
         plan = plan.executed(trajectory, record.clock(), flight.mode, float(last))
+    return SitlFlight(flight, record, plan, vehicles, releases, start)
+
+
+def report_sitl_flight(flight_dir: Path) -> tuple[FlightReport, PlannedFlight]:
+    """The report of a SITL flight (:func:`read_sitl_flight`).
+
+    Raises
+    ------
+    InputError, TaskDirectoryError, AlignmentError
+        A file the report needs is missing or unreadable.
+    """
+    read = read_sitl_flight(flight_dir)
+    flight, record, plan, start = read.flight, read.record, read.plan, read.start
+    vehicles, releases = read.vehicles, read.releases
     stop = None
     if record.commanded_stop_at is not None:
         struck = [f["time"] for f in flight.faults if f["kind"] not in ("late", "operator")]
