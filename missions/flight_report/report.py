@@ -68,9 +68,9 @@ MOVING_SPEED = 0.2
 REST_SPEED = 0.02
 #: After the last arrival, this much of the hold is judged too [s].
 END_MARGIN_S = 1.0
-#: The start is read from this much of the first motion [s], shifted by up to
-#: :data:`START_SEARCH_S` [s].
-START_WINDOW_S, START_SEARCH_S = 3.0, 0.5
+#: The start and the end are read from this much of the first and the last motion [s],
+#: shifted by up to :data:`SHIFT_SEARCH_S` [s].
+SHIFT_WINDOW_S, SHIFT_SEARCH_S = 3.0, 0.5
 #: A drone is at rest when it moves less than this [m/s] over :data:`STOP_WINDOW_S` [s]
 #: (SIM_STATE's positions come in centimetre steps: a shorter window is noise).
 STOPPED_SPEED, STOP_WINDOW_S = 0.1, 0.5
@@ -182,15 +182,23 @@ class Timing:
 def _arrivals(
     plan: PlannedFlight, vehicles: Sequence[VehicleLog], releases: Releases
 ) -> list[float]:
-    """Each drone's arrival at the end of its mission on mission time: when its final hold
-    became current (the autopilot's own judgement that the last leg is done); failing that,
-    when it came within :data:`ARRIVAL_TOLERANCE_M` of where it settled at the end."""
+    """Each drone's arrival at the end of its mission on mission time. Of missions: when
+    its final hold became current (the autopilot's own judgement that the last leg is
+    done). Of a clocked execution (``stream``, ``onboard``): the end of its modelled motion
+    shifted by its :func:`_end_delays`. Failing either (a stopped flight), when it came
+    within :data:`ARRIVAL_TOLERANCE_M` of where it settled at the end."""
     end = plan.motion.drones[-1]
+    clocked = None
+    if plan.mode != "missions":
+        clocked = _motion_end(plan) + _end_delays(plan, vehicles, releases)
     arrival = []
     for k, vehicle in enumerate(vehicles):
-        event = vehicle.current.first(plan.end_seq[k])
+        event = vehicle.current.first(plan.end_seq[k]) if clocked is None else None
         if event is not None:
             arrival.append(float(releases.mission_time(k, np.array([event[0]]))[0]))
+            continue
+        if clocked is not None and np.isfinite(clocked[k]):
+            arrival.append(float(clocked[k]))
             continue
         track = vehicle.estimated
         t = releases.mission_time(k, track.time)
@@ -225,30 +233,70 @@ def _progress(
     return np.where(moving, t[:, None] + lag, np.nan)
 
 
+def _motion_end(plan: PlannedFlight) -> float:
+    """Mission time at which the modelled drones stop for good [s]."""
+    drones = plan.motion.drones
+    moving = (drones != drones[-1]).any(axis=(1, 2))
+    if not moving.any():
+        return 0.0
+    return float(plan.motion.time[min(int(np.flatnonzero(moving)[-1]) + 1, len(moving) - 1)])
+
+
+def _shift(
+    plan: PlannedFlight,
+    k: int,
+    t: NDArray[np.float64],
+    flown: NDArray[np.float64],
+    window: NDArray[np.bool_],
+    rest: NDArray[np.bool_],
+    at: float,
+) -> float:
+    """The shift of mission time [s] that best lays drone k's motion in ``window`` over
+    its modelled drone's, least squares on the log's full rate; each measured from where it
+    rests (the flown drone over ``rest``, the model at mission time ``at``): a steady
+    offset is not a delay. NaN without samples."""
+    if not window.any() or not rest.any():
+        return float("nan")
+    moved = flown[window] - flown[rest].mean(axis=0)
+    reference = plan.drones_at(np.array([at]))[0, k]
+    shifts = np.arange(-SHIFT_SEARCH_S, SHIFT_SEARCH_S + 1e-9, 0.002)
+    costs = [
+        float(np.sum((moved - (plan.drones_at(t[window] - s)[:, k] - reference)) ** 2))
+        for s in shifts
+    ]
+    return float(shifts[int(np.argmin(costs))])
+
+
 def _start_delays(
     plan: PlannedFlight, vehicles: Sequence[VehicleLog], releases: Releases
 ) -> NDArray[np.float64]:
-    """Each drone's start against its modelled drone's [s]: the shift of mission time that
-    best lays its first :data:`START_WINDOW_S` of motion (from its own hold: a steady offset
-    is not a delay) over the model's, least squares on the log's full rate; a start from
-    rest is slow, so a shift read from one threshold crossing would be the estimate's noise
-    over a few millimetres per second."""
-    shifts = np.arange(-START_SEARCH_S, START_SEARCH_S + 1e-9, 0.002)
+    """Each drone's start against its modelled drone's [s]: the :func:`_shift` of its first
+    :data:`SHIFT_WINDOW_S` of motion from its hold; a start from rest is slow, so a shift
+    read from one threshold crossing would be the estimate's noise over a few millimetres
+    per second."""
     delays = np.full(len(vehicles), np.nan)
     for k, vehicle in enumerate(vehicles):
         series = vehicle.estimated
-        flown_t = releases.mission_time(k, series.time)
-        before = (flown_t > -1.0) & (flown_t <= 0.0)
-        window = (flown_t > 0.0) & (flown_t <= START_WINDOW_S)
-        if not before.any() or not window.any():
-            continue
-        flown = series.enu[window] - series.enu[before].mean(axis=0)
-        modelled = plan.drones_at(np.zeros(1))[0, k]
-        costs = [
-            float(np.sum((flown - (plan.drones_at(flown_t[window] - s)[:, k] - modelled)) ** 2))
-            for s in shifts
-        ]
-        delays[k] = float(shifts[int(np.argmin(costs))])
+        t = releases.mission_time(k, series.time)
+        window, rest = (t > 0.0) & (t <= SHIFT_WINDOW_S), (t > -1.0) & (t <= 0.0)
+        delays[k] = _shift(plan, k, t, series.enu, window, rest, 0.0)
+    return delays
+
+
+def _end_delays(
+    plan: PlannedFlight, vehicles: Sequence[VehicleLog], releases: Releases
+) -> NDArray[np.float64]:
+    """Each drone's arrival against its modelled drone's [s]: the :func:`_shift` of its
+    last :data:`SHIFT_WINDOW_S` of motion to where it rests after it, for the same reason
+    as :func:`_start_delays` (the last centimetres are flown slowest)."""
+    end = _motion_end(plan)
+    delays = np.full(len(vehicles), np.nan)
+    for k, vehicle in enumerate(vehicles):
+        series = vehicle.estimated
+        t = releases.mission_time(k, series.time)
+        window = (t > end - SHIFT_WINDOW_S) & (t <= end + SHIFT_SEARCH_S)
+        rest = (t > end + SHIFT_SEARCH_S) & (t <= end + SHIFT_SEARCH_S + 1.0)
+        delays[k] = _shift(plan, k, t, series.enu, window, rest, end)
     return delays
 
 

@@ -21,7 +21,7 @@ from tests.missions.sitl.flights import SITL_MARKS, fly, run_fly_sitl
 pytestmark = SITL_MARKS
 
 
-def assert_in_step(report: dict, duration: float = 0.05, start: float = 0.03) -> None:
+def assert_in_step(report: dict, duration: float = 0.02, start: float = 0.03) -> None:
     """The drones flew the plan together on one clock (true positions judged)."""
     true, estimated = report["true"], report["estimated"]
     assert report["verdict"]["safe"], report["verdict"]["reasons"]
@@ -48,9 +48,9 @@ def test_the_rescue_streamed_from_one_clock_flies_in_step(rescue: Path, tmp_path
 
 
 def test_the_puzzle_streamed_from_one_clock_flies_in_step(puzzle: Path, tmp_path: Path):
-    """The Puzzle's starts spread 22 ms at the median and 60 ms at worst over 9 flights
-    (BENCHMARKS.md, "Execution in step"): issue 23's 20 ms is missed here, and the bound
-    is the measured worst with a margin."""
+    """The Puzzle's starts spread 35 ms at the median and 52 ms at worst over 10 flights
+    (BENCHMARKS.md, "Execution in step", "Second run"): issue 23's 20 ms is missed here,
+    and the bound is the measured worst with a margin."""
     assert_in_step(fly(puzzle, tmp_path, "--mode", "stream"), start=0.08)
 
 
