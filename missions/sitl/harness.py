@@ -99,7 +99,9 @@ class SitlFlightOptions:
     #: [m] "steady": and every drone's estimate this close to its hold. Slow alone is not
     #: steady: a take-off closes its last centimetres of height slowly
     #: (:mod:`missions.autopilots.ardupilot`), and drones released merely slow start the
-    #: mission below their hold (BENCHMARKS.md, "Home height")
+    #: mission below their hold (BENCHMARKS.md, "Home height"); horizontally too, which
+    #: holds stock sensors at the start until their estimates converge (BENCHMARKS.md,
+    #: "Settling at the hold")
     settle_distance: float = 0.02
     end_margin_s: float = 3.0  #: recorded after the last drone reached its end
     hold_after_stop_s: float = 3.0  #: recorded after a team stop
