@@ -10,8 +10,8 @@ clock, between 0.2 s after the start and 0.2 s before the end: the lag [ms] that
 the flown track over the plan (least squares over shifts of 5 ms, east-north and up
 apart; negative: ahead), the median offset [cm] (east, north, up), and the p95 distance
 [cm] as flown and with the lags taken out. A lag that removing changes the p95 little is
-not what the error is made of. BENCHMARKS.md ("Execution in step", "Leads") records the
-runs that set the executors' leads.
+not what the error is made of. BENCHMARKS.md ("Execution in step", "Second run") records
+the runs that set the executors' leads.
 """
 
 from __future__ import annotations

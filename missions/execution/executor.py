@@ -151,7 +151,7 @@ class Executor(ABC):
     #: How far ahead of a vehicle's present its targets are (horizontal, vertical) [s]
     #: unless :attr:`ExecutionOptions.lead` says: ArduCopter 4.5.7's position controller,
     #: default tuning, lags a horizontal target more than a vertical one (BENCHMARKS.md,
-    #: "Leads").
+    #: "Execution in step", "Second run").
     default_lead: tuple[float, float] = (0.0, 0.0)
 
     def __init__(

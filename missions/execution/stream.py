@@ -4,11 +4,11 @@ Each drone flies in GUIDED on position + velocity + acceleration targets
 (SET_POSITION_TARGET_LOCAL_NED, :mod:`missions.mavlink.guided`), one a tick, in its local
 NED frame (:mod:`.vehicles`). The target of drone k is its trajectory at plan time
 tau(t_k + lead), t_k its own present on the common clock and the lead what its controller
-lags a target by (:attr:`~.executor.Executor.default_lead`), with the velocity scaled by the clock's
-rate and the acceleration by its square plus the velocity times the rate's change: slowing
-or stopping the clock slows or stops all three on the plan. ArduCopter moves a target on
-with its last velocity between two targets, so one that comes late costs little; without
-a new one for GUID_TIMEOUT it holds (the .parm sets it short,
+lags a target by (:attr:`~.executor.Executor.default_lead`), with the velocity scaled by
+the clock's rate and the acceleration by its square plus the velocity times the rate's
+change: slowing or stopping the clock slows or stops all three on the plan. ArduCopter
+moves a target on with its last velocity between two targets, so one that comes late costs
+little; without a new one for GUID_TIMEOUT it holds (the .parm sets it short,
 :mod:`missions.autopilots.ardupilot`).
 
 PX4's OFFBOARD mode takes the same message (it needs targets above 2 Hz for a second

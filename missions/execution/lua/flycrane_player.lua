@@ -12,9 +12,11 @@ Group time arrives as DEBUG_FLOAT_ARRAY (350) named "GT": time_usec = t0, this v
 millis() at which plan time is data[0] (tau0, s); the rate is data[1] at t0 and goes
 linearly to data[2] over data[3] seconds, then stays; data[4] is the segment's sequence
 number; data[5] and data[6] how far ahead of now [s] the targets are, horizontally and
-vertically (what the position controller lags them by). A segment governs from its t0 until a later one's: one that arrives before its t0
-(this vehicle's clock behind the ground's) waits. Before the first, the player holds the
-trajectory's first point.
+vertically (what the position controller lags them by). A segment governs from its t0
+until a later one's: one that arrives before its t0 (this vehicle's clock behind the
+ground's) waits. Before the first, the player holds the trajectory's first point.
+The trajectory is placed horizontally from the planned home in the file's header, as the
+ground's targets are, and vertically from the vehicle's home.
 
 File (little endian): "FCT1", uint32 n, float32 dt, int32 home lat, int32 home lon
 [1e-7 deg], float32 home alt AMSL [m] (24 bytes), then n rows of 10 float32: t, north,
@@ -35,8 +37,9 @@ local INFO, WARNING = 6, 4
 mavlink:init(8, 1)
 mavlink:register_rx_msgid(DEBUG_FLOAT_ARRAY)
 
-local trajectory = nil  -- {file, n, dt, duration, first, count, window}
-local segment = nil     -- the governing one: {t0, tau0, rate, rate_end, ramp, seq, lead_h, lead_v}
+local trajectory = nil  -- {file, n, dt, duration, first, count, window, lat, lon}
+local segment = nil     -- the governing one: {t0, tau0, rate, rate_end, ramp, seq,
+                        -- lead_h, lead_v}
 local waiting = {}      -- later ones whose t0 is still ahead, by sequence
 local MAX_WAITING = 8
 local active = nil      -- the NAV_SCRIPT_TIME item being played
