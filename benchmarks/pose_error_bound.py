@@ -29,7 +29,7 @@ from flycrane.model.direct_kinematics import configuration_from_drone_positions
 from flycrane.model.kinematics import matrix_from_tilt_torsion
 from flycrane.model.pose_error import displacement_bound
 from flycrane.world.scene import Box
-from missions.execution.executor import ExecutionRecord
+from missions.execution.record import ExecutionRecord
 from missions.position_error import PRESETS
 from missions.task.directory import TaskDirectory
 

@@ -18,7 +18,6 @@ hand-over from the hold), :meth:`start` (plan time 0 ``start_delay`` of common t
 
 from __future__ import annotations
 
-import json
 import logging
 import threading
 import time
@@ -26,14 +25,12 @@ from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from itertools import combinations
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.errors import FieldProblem, InputError
-from missions.execution.group_clock import GroupClock, RatePolicy, Segment
+from missions.execution.group_clock import GroupClock, RatePolicy
+from missions.execution.record import ExecutionRecord
 from missions.execution.team import Fault, FaultKind, MonitorLimits, TeamMonitor
 from missions.execution.vehicles import VehicleFrame, VehicleState
 from missions.mavlink.commands import send_command, set_message_interval
@@ -97,45 +94,6 @@ class ExecutionOptions:
             raise ValueError(f"rate_hz: {self.rate_hz} is outside 10-50 Hz")
         if self.lead is not None and not all(0.0 <= x <= MAX_LEAD_S for x in self.lead):
             raise ValueError(f"lead: {self.lead} is outside 0-{MAX_LEAD_S} s")
-
-
-@dataclass
-class ExecutionRecord:
-    """What an execution did, on common time: its clock, its faults, its stop
-    (``execution.json`` beside a flight's logs)."""
-
-    mode: str
-    start: float  #: common time of plan time 0 [s]
-    duration: float  #: the plan's [s]
-    segments: list[dict[str, float]] = field(default_factory=list)
-    faults: list[dict[str, Any]] = field(default_factory=list)
-    commanded_stop_at: float | None = None  #: when the team stop went out [common s]
-    stopped_at: float | None = None  #: when the clock's rate reached 0 after it
-    offsets: list[float] = field(default_factory=list)  #: per drone, common - boot [s]
-    frames: list[dict[str, float]] = field(default_factory=list)
-    ticks: int = 0
-
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-    @classmethod
-    def read(cls, path: Path) -> ExecutionRecord:
-        """From an ``execution.json``.
-
-        Raises
-        ------
-        InputError
-            No such file, or not an execution record of this version (field ``execution``).
-        """
-        try:
-            return cls(**json.loads(path.read_text(encoding="utf-8")))
-        except (OSError, ValueError, TypeError) as error:
-            raise InputError([FieldProblem("execution", f"{path}: {error}")]) from None
-
-    def clock(self) -> GroupClock:
-        """The group clock as it ran."""
-        segments = [Segment(**s) for s in self.segments]
-        return GroupClock(self.start, self.duration, segments)
 
 
 class Executor(ABC):

@@ -4,6 +4,7 @@
   events);
 - :mod:`.alignment` puts the three drones on one mission time;
 - :mod:`.planned_flight` reads what the drones were told (a task's directory);
+- :mod:`.timing` says when each drone started, arrived and where it was along the plan;
 - :mod:`.report` computes every figure and the verdict, :mod:`.plot` draws them and
   :mod:`.flight_mcap` logs them for Foxglove.
 
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from missions.execution.executor import ExecutionRecord
+from missions.execution.record import ExecutionRecord
 from missions.export.formats import dumps
 from missions.flight_report.alignment import (
     AlignmentError,

@@ -12,7 +12,7 @@ from typing import Any
 from flycrane.errors import FieldProblem, InputError
 
 FLIGHT_FILE = "flight.json"
-#: An executor's record beside it (:class:`missions.execution.executor.ExecutionRecord`).
+#: An executor's record beside it (:class:`missions.execution.record.ExecutionRecord`).
 EXECUTION_FILE = "execution.json"
 
 

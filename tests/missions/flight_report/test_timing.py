@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from missions.flight_report.report import _arrivals, _end_delays, _motion_end, _start_delays
+from missions.flight_report.timing import arrivals, end_delays, motion_end, start_delays
 from missions.trajectory.motion import DroneMotion
 
 #: each drone's delay [s] and steady offset [m]
@@ -45,19 +45,19 @@ RELEASES = SimpleNamespace(mission_time=lambda k, time: time)
 
 
 def test_the_motion_ends_where_the_model_comes_to_rest():
-    assert _motion_end(_plan()) == pytest.approx(DURATION, abs=0.011)
+    assert motion_end(_plan()) == pytest.approx(DURATION, abs=0.011)
 
 
 def test_start_and_end_delays_are_the_imposed_shifts_whatever_the_steady_offset():
     plan = _plan()
     vehicles = _vehicles(plan)
-    np.testing.assert_allclose(_start_delays(plan, vehicles, RELEASES), DELAYS, atol=0.004)
-    np.testing.assert_allclose(_end_delays(plan, vehicles, RELEASES), DELAYS, atol=0.004)
+    np.testing.assert_allclose(start_delays(plan, vehicles, RELEASES), DELAYS, atol=0.004)
+    np.testing.assert_allclose(end_delays(plan, vehicles, RELEASES), DELAYS, atol=0.004)
 
 
 def test_a_clocked_flight_arrives_when_its_shifted_model_does():
     """Not when it first comes within a threshold of its end: the last centimetres of a
     smooth stop take a large part of a second."""
     plan = _plan()
-    arrivals = _arrivals(plan, _vehicles(plan), RELEASES)  # type: ignore[arg-type]
-    np.testing.assert_allclose(arrivals, DURATION + np.array(DELAYS), atol=0.015)
+    arrived = arrivals(plan, _vehicles(plan), RELEASES)  # type: ignore[arg-type]
+    np.testing.assert_allclose(arrived, DURATION + np.array(DELAYS), atol=0.015)
