@@ -23,7 +23,7 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from itertools import combinations
 
 import numpy as np
@@ -43,8 +43,10 @@ from missions.trajectory.drone_trajectory import DroneTrajectory
 
 logger = logging.getLogger(__name__)
 
-#: The longest pause of the ground's own that is not a vehicle's silence [s of ground
-#: time] (module docstring of :mod:`.team`, ``link``).
+#: The longest pause of the host's (the ground's, or a simulator's) that is not a
+#: vehicle's silence [s of wall time] (module docstring of :mod:`.team`, ``link``). Faster
+#: than real time it counts ``speedup`` times over in the vehicles' time, so a lost link
+#: is never judged on less than this much of wall time (:meth:`Executor.__init__`).
 GROUND_PAUSE_S = 0.1
 #: Faults after which the drone still flies under its own control, with an estimate the
 #: team can follow to the stop (:meth:`Executor._follow`). Not a stray drone: one that
@@ -129,7 +131,10 @@ class Executor(ABC):
         self.vehicles = [
             VehicleState(link, speedup, self.options.max_extrapolation) for link in links
         ]
-        self.monitor = TeamMonitor(self.expected_mode, self.options.limits)
+        limits = self.options.limits
+        if limits.link_timeout < GROUND_PAUSE_S * speedup:
+            limits = replace(limits, link_timeout=GROUND_PAUSE_S * speedup)
+        self.monitor = TeamMonitor(self.expected_mode, limits)
         self.frames: list[VehicleFrame] = []
         self.clock: GroupClock | None = None
         self.record: ExecutionRecord | None = None

@@ -141,7 +141,7 @@ def register(commands: argparse._SubParsersAction) -> None:
         "controller lags them by (stream, onboard; default: the mode's, measured on "
         "ArduCopter 4.5.7's default tuning)",
     )  # fmt: skip
-    command.add_argument("--speedup", type=float, help="simulation speed-up (default: 10)")
+    command.add_argument("--speedup", type=float, help="simulation speed-up (default: 5)")
     command.add_argument(
         "--stock-sensors", action="store_true",
         help="SITL's sensors as they come: no barometer calibration, gyro drift on",

@@ -26,11 +26,12 @@ class SitlSettings(BaseSettings):
         None, description="defaults file (default: copter.parm beside the binary)"
     )
     speedup: float = Field(
-        10.0,
+        5.0,
         gt=0,
         le=50,
-        description="simulated seconds per wall second (the ground's pauses count this many "
-        "times over in the drones' time)",
+        description="simulated seconds per wall second (the host's pauses count this many "
+        "times over in the drones' time, and a lost link is judged on at least 0.1 s of wall "
+        "time: faster, the team failsafe is slower in the drones' time)",
     )
     min_rate: float = Field(
         0.2,

@@ -23,7 +23,7 @@ class _Link:
         pass
 
 
-def _executor(lead: tuple[float, float] | None) -> StreamExecutor:
+def _executor(lead: tuple[float, float] | None, speedup: float = 1.0) -> StreamExecutor:
     t = np.arange(0.0, 10.0 + 1e-9, 0.1)
     position = 0.5 * t[:, None, None] ** 2 * ACCELERATION
     trajectory = DroneTrajectory(
@@ -39,6 +39,7 @@ def _executor(lead: tuple[float, float] | None) -> StreamExecutor:
         trajectory,
         GeodeticOrigin(latitude=47.0, longitude=8.0, altitude=400.0),
         options=ExecutionOptions(lead=lead),
+        speedup=speedup,
     )
     executor.clock = GroupClock(start=100.0, duration=10.0)
     return executor
@@ -66,3 +67,14 @@ def test_the_stream_leads_horizontally_by_default():
 def test_a_lead_out_of_range_is_refused_naming_the_field(lead):
     with pytest.raises(ValueError, match="lead"):
         ExecutionOptions(lead=lead)
+
+
+@pytest.mark.parametrize(("speedup", "lost_after"), [(1.0, 0.5), (5.0, 0.5), (10.0, 1.0)])
+def test_a_lost_link_is_judged_on_a_tenth_of_a_second_of_wall_time_at_least(speedup, lost_after):
+    """Faster than real time a pause of the host is ``speedup`` times as long in the
+    drones' time: at x10 a 0.06 s pause of the machine is 0.6 s of a simulator's silence."""
+    monitor = _executor(None, speedup).monitor
+    for k in range(3):
+        monitor.heard(k, 100.0)
+    assert monitor.faults(100.0 + lost_after - 0.01) == []
+    assert {f.drone for f in monitor.faults(100.0 + lost_after + 0.01)} == {1, 2, 3}
