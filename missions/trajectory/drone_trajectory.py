@@ -9,7 +9,8 @@ the task has one, is sampled every :data:`SAMPLE_STEP_S`. Positions are the plan
 between the dense samples, a few centimetres apart), so the load's safety is the plan's;
 velocity and acceleration are the first and second derivatives of a local cubic fit over
 :data:`DERIVATIVE_WINDOW_S` (Savitzky-Golay, scipy.signal), the feed-forward a copter's
-position controller needs not to lag its target. Between samples a trajectory is read by
+position controller needs not to lag its target; at the ends the fit spans the holds
+before the release and after the arrival. Between samples a trajectory is read by
 cubic Hermite interpolation of position and velocity (:meth:`DroneTrajectory.at`).
 
 Frame: ENU metres relative to each drone's *home*, the point ``home_height`` above the
@@ -122,8 +123,13 @@ class DroneTrajectory:
         window = min(window, len(samples) - (1 - len(samples) % 2))
         velocity = acceleration = np.zeros_like(position)
         if window >= 5:
-            velocity = savgol_filter(position, window, 3, deriv=1, delta=step, axis=0)
-            acceleration = savgol_filter(position, window, 3, deriv=2, delta=step, axis=0)
+            # the fit at either end sees the hold beside it, where the drone rests: fitted
+            # to the motion alone, it extrapolated the first segments' steady speed and
+            # told a drone to brake before it had moved
+            half = window // 2
+            held = np.pad(position, ((half, half), (0, 0)), mode="edge")
+            velocity = savgol_filter(held, window, 3, deriv=1, delta=step, axis=0)[half:-half]
+            acceleration = savgol_filter(held, window, 3, deriv=2, delta=step, axis=0)[half:-half]
         # from rest, to rest: the hold before the release and the hold at the end
         velocity[[0, -1]] = 0.0
         acceleration[[0, -1]] = 0.0

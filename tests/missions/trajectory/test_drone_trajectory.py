@@ -71,6 +71,17 @@ def test_speed_and_acceleration_stay_within_the_limits_also_at_the_corner():
     assert np.allclose(trajectory.velocity[[0, -1]], 0.0)
 
 
+def test_from_rest_a_drone_speeds_up_before_it_moves_and_brakes_into_the_hold():
+    """The track leaves east from rest and arrives north at rest: over its first and last
+    0.4 s the acceleration never points against the motion (a drone told to brake before
+    it has moved lags its start)."""
+    trajectory = DroneTrajectory.of_plan(l_track(), OPTIONS)
+    n = int(0.4 / trajectory.step)
+    assert (trajectory.acceleration[:n, :, 0] >= 0.0).all()
+    assert (trajectory.acceleration[-n:, :, 1] <= 0.0).all()
+    assert (trajectory.velocity[:n, :, 0] >= 0.0).all()
+
+
 def test_reading_between_samples_holds_at_the_end():
     trajectory = DroneTrajectory.of_plan(l_track(), OPTIONS)
     p, v, a = trajectory.at(trajectory.duration + 100.0)
