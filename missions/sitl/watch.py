@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -66,9 +67,10 @@ class RateMeter:
 
 
 class HoldWatch:
-    """The latest MISSION_CURRENT and time of every vehicle, and since when it has been
-    steady at its hold: slower than ``settle_speed`` [m/s] and its estimate within
-    ``settle_distance`` [m] of ``holds`` (reader threads)."""
+    """The latest MISSION_CURRENT and time of every vehicle, since when it has been at that
+    item, and since when it has been steady at its hold: slower than ``settle_speed``
+    [m/s] and its estimate within ``settle_distance`` [m] of ``holds``; and how fast and
+    how far off it was at worst over the last ``window_s`` [s] (reader threads)."""
 
     def __init__(
         self,
@@ -76,12 +78,20 @@ class HoldWatch:
         holds: Sequence[MissionItem],
         settle_speed: float,
         settle_distance: float,
+        window_s: float,
     ) -> None:
         self.current = {link.name: -1 for link in links}
+        self.current_since = {link.name: 0.0 for link in links}
         self.slow_since: dict[str, float | None] = {link.name: None for link in links}
         self.boot_s = {link.name: 0.0 for link in links}
         self.settle_speed = settle_speed
         self.settle_distance = settle_distance
+        self.window_s = window_s
+        #: per vehicle: (boot time [s], speed [m/s], horizontal and vertical distance to
+        #: its hold [m])
+        self.recent: dict[str, deque[tuple[float, float, float, float]]] = {
+            link.name: deque() for link in links
+        }
         # each hold where ArduPilot flies it: its latitude and longitude, and its altitude
         # above home in whole centimetres (relative_alt is above home too)
         self._holds = {
@@ -101,6 +111,7 @@ class HoldWatch:
             if msg.get_type() == "MISSION_CURRENT":
                 if msg.seq != self.current[name]:
                     self.current[name] = msg.seq
+                    self.current_since[name] = self.boot_s[name]
                     self.slow_since[name] = None
                 return
             now = msg.time_boot_ms / 1000.0
@@ -110,7 +121,12 @@ class HoldWatch:
                 msg.lat * DEGREE_UNIT, msg.lon * DEGREE_UNIT, msg.relative_alt / 1000.0,
                 self._holds[name],
             )  # fmt: skip
-            if speed > self.settle_speed or math.hypot(*offset) > self.settle_distance:
+            distance = math.hypot(*offset)
+            recent = self.recent[name]
+            recent.append((now, speed, math.hypot(offset[0], offset[1]), abs(offset[2])))
+            while recent[0][0] < now - self.window_s:
+                recent.popleft()
+            if speed > self.settle_speed or distance > self.settle_distance:
                 self.slow_since[name] = None
             elif self.slow_since[name] is None:
                 self.slow_since[name] = now
@@ -120,6 +136,19 @@ class HoldWatch:
     def steady_for(self, name: str) -> float:
         since = self.slow_since[name]
         return 0.0 if since is None else self.boot_s[name] - since
+
+    def at_current_for(self, name: str) -> float:
+        """How long the vehicle has been at its current mission item [s]."""
+        return self.boot_s[name] - self.current_since[name]
+
+    def worst(self, name: str) -> tuple[float, float, float]:
+        """The vehicle's highest speed [m/s] and its farthest horizontal and vertical
+        distances from its hold [m] over the last ``window_s`` (NaN before a message)."""
+        recent = list(self.recent[name])
+        if not recent:
+            return math.nan, math.nan, math.nan
+        speed, horizontal, vertical = (max(r[i] for r in recent) for i in (1, 2, 3))
+        return speed, horizontal, vertical
 
     def wait(self, condition: Callable[[], bool], timeout_s: float, what: str) -> None:
         deadline = time.monotonic() + timeout_s
