@@ -82,7 +82,9 @@ class ExecutionOptions:
     """How the plan is played (times in seconds of common time)."""
 
     rate_hz: float = 20.0  #: ticks per second of vehicle time (10-50)
-    start_delay: float = 1.0  #: from the start command to plan time 0
+    #: from the start command to plan time 0; None: the executor's own
+    #: (:attr:`Executor.default_start_delay`)
+    start_delay: float | None = None
     max_extrapolation: float = 0.1  #: of a vehicle's clock past its last message
     #: targets are for this much ahead of a vehicle's present [s of common time],
     #: (horizontal, vertical): what its controller lags them by on top of their way to it;
@@ -96,6 +98,8 @@ class ExecutionOptions:
             raise ValueError(f"rate_hz: {self.rate_hz} is outside 10-50 Hz")
         if self.lead is not None and not all(0.0 <= x <= MAX_LEAD_S for x in self.lead):
             raise ValueError(f"lead: {self.lead} is outside 0-{MAX_LEAD_S} s")
+        if self.start_delay is not None and not 0.0 <= self.start_delay <= 60.0:
+            raise ValueError(f"start_delay: {self.start_delay} is outside 0-60 s")
 
 
 class Executor(ABC):
@@ -113,6 +117,14 @@ class Executor(ABC):
     #: default tuning, lags a horizontal target more than a vertical one (BENCHMARKS.md,
     #: "Execution in step", "Second run").
     default_lead: tuple[float, float] = (0.0, 0.0)
+    #: From the start command to plan time 0 [s of common time] unless
+    #: :attr:`ExecutionOptions.start_delay` says: long enough for the drones to reach their
+    #: first target from the autopilot's own hold (which ArduCopter flies at whole
+    #: centimetres of altitude, and the SITL harness releases within 2 cm of): 4.5.7
+    #: closes the last centimetre of height in about 2 s, and drones started within 1 s
+    #: started up to 1.7 cm below their start, 20-40 ms apart more (BENCHMARKS.md,
+    #: "Execution in step", "Third run").
+    default_start_delay = 3.0
 
     def __init__(
         self,
@@ -200,7 +212,9 @@ class Executor(ABC):
         """Start the plan ``start_delay`` of common time from now, and play it (a
         background thread) until :meth:`stop` or the plan's end."""
         now = self.present()
-        self.clock = GroupClock(now + self.options.start_delay, self.trajectory.duration)
+        delay = self.options.start_delay
+        delay = self.default_start_delay if delay is None else delay
+        self.clock = GroupClock(now + delay, self.trajectory.duration)
         self.record = ExecutionRecord(
             mode=self.mode,
             start=self.clock.start,

@@ -32,6 +32,9 @@ class MissionsExecutor(Executor):
 
     mode = "missions"
     expected_mode = COPTER_MODES["AUTO"]
+    #: the autopilots fly from their own hold: the clock only times the record and the
+    #: faults after the release
+    default_start_delay = 1.0
 
     def __init__(self, *args, release_seq: int, **kwargs) -> None:  # type: ignore[no-untyped-def]
         super().__init__(*args, **kwargs)
