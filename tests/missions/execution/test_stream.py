@@ -78,3 +78,9 @@ def test_a_lost_link_is_judged_on_a_tenth_of_a_second_of_wall_time_at_least(spee
         monitor.heard(k, 100.0)
     assert monitor.faults(100.0 + lost_after - 0.01) == []
     assert {f.drone for f in monitor.faults(100.0 + lost_after + 0.01)} == {1, 2, 3}
+
+
+@pytest.mark.parametrize("start_delay", [-0.1, 61.0])
+def test_a_start_delay_out_of_range_is_refused_naming_the_field(start_delay):
+    with pytest.raises(ValueError, match="start_delay"):
+        ExecutionOptions(start_delay=start_delay)
