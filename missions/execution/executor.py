@@ -120,10 +120,10 @@ class Executor(ABC):
     #: From the start command to plan time 0 [s of common time] unless
     #: :attr:`ExecutionOptions.start_delay` says: long enough for the drones to reach their
     #: first target from the autopilot's own hold (which ArduCopter flies at whole
-    #: centimetres of altitude, and the SITL harness releases within 2 cm of): 4.5.7
-    #: closes the last centimetre of height in about 2 s, and drones started within 1 s
-    #: started up to 1.7 cm below their start, 20-40 ms apart more (BENCHMARKS.md,
-    #: "Execution in step", "Third run").
+    #: centimetres of altitude, and the SITL harness releases within 2 cm of). 4.5.7
+    #: closes the last centimetre of height in about 2 s; started after 1 s, the drones
+    #: began up to 1.7 cm below their start and the Puzzle's 20-40 ms further apart
+    #: (BENCHMARKS.md, "Execution in step", "Third run").
     default_start_delay = 3.0
 
     def __init__(
