@@ -105,8 +105,9 @@ class SitlFlightOptions:
     #: "Settling at the hold")
     settle_distance: float = 0.02
     #: [s] at the hold without holding steady after which the hold is judged against the
-    #: plan's position-error model instead (:func:`_hold_reasons`): gusts keep a drone from
-    #: ever holding within ``settle_distance``, a stock estimate converges for minutes
+    #: plan's position-error model instead (:meth:`HoldWatch.unsteady_reasons`): gusts keep
+    #: a drone from ever holding within ``settle_distance``, a stock estimate converges for
+    #: minutes
     hold_patience_s: float = 300.0
     end_margin_s: float = 3.0  #: recorded after the last drone reached its end
     hold_after_stop_s: float = 3.0  #: recorded after a team stop
@@ -322,7 +323,9 @@ def _fly(
         300.0 / pace + options.hold_patience_s / pace + 30.0,
         "every drone steady at its start hold",
     )
-    readiness = Readiness(_hold_reasons(watch, options, plan.model))
+    readiness = Readiness(
+        watch.unsteady_reasons(plan.model, options.hold_patience_s, options.settle_s)
+    )
     if options.check_readiness:
         checked = check_readiness(
             links, plan.model, plan.trajectory.in_task_frame(plan.trajectory.position[0]),
@@ -373,33 +376,6 @@ def _fly(
         refused=tuple(readiness.reasons),
         faults=tuple(injected),
     )
-
-
-def _hold_reasons(
-    watch: HoldWatch, options: SitlFlightOptions, model: PositionErrorModel
-) -> tuple[str, ...]:
-    """Why the drones that never held steady within ``hold_patience_s`` may not be
-    released: each one farther from its hold over the last ``settle_s`` than the
-    position-error model's bounds (what the release check judges one instant by). One
-    within them is released with a warning: the plan's clearance was made for its errors."""
-    reasons = []
-    for name in watch.current:
-        if watch.steady_for(name) >= options.settle_s:
-            continue
-        speed, horizontal, vertical = watch.worst(name)
-        seen = (
-            f"{name}: not steady at its start hold in {options.hold_patience_s:g} s: up to "
-            f"{speed:.2f} m/s, {horizontal:.3f} m across and {vertical:.3f} m up or down from "
-            f"it over the last {options.settle_s:g} s"
-        )
-        if not (
-            horizontal <= model.common_horizontal + model.relative_horizontal
-            and vertical <= model.common_vertical + model.relative_vertical
-        ):
-            reasons.append(f"{seen}, beyond the position-error model")
-        else:
-            logger.warning("%s, within the position-error model: released", seen)
-    return tuple(reasons)
 
 
 def _execute(

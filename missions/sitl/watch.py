@@ -3,6 +3,7 @@ drone steady at its hold."""
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from collections import deque
@@ -13,7 +14,10 @@ from missions.export.items import MissionItem
 from missions.geodesy import DEGREE_UNIT, ardupilot_altitude, enu_from_geodetic
 from missions.mavlink.transport import VehicleLink
 from missions.options import GeodeticOrigin
+from missions.position_error import PositionErrorModel
 from missions.sitl.errors import SitlError
+
+logger = logging.getLogger(__name__)
 
 
 def wait_for(
@@ -149,6 +153,33 @@ class HoldWatch:
             return math.nan, math.nan, math.nan
         speed, horizontal, vertical = (max(r[i] for r in recent) for i in (1, 2, 3))
         return speed, horizontal, vertical
+
+    def unsteady_reasons(
+        self, model: PositionErrorModel, patience_s: float, settle_s: float
+    ) -> tuple[str, ...]:
+        """Why the vehicles that never held steady for ``settle_s`` within ``patience_s``
+        may not be released: each one farther from its hold over the last ``window_s`` than
+        the position-error model's bounds (what the release check judges one instant by).
+        One within them is released with a warning: the plan's clearance was made for its
+        errors."""
+        reasons = []
+        for name in self.current:
+            if self.steady_for(name) >= settle_s:
+                continue
+            speed, horizontal, vertical = self.worst(name)
+            seen = (
+                f"{name}: not steady at its start hold in {patience_s:g} s: up to "
+                f"{speed:.2f} m/s, {horizontal:.3f} m across and {vertical:.3f} m up or down "
+                f"from it over the last {self.window_s:g} s"
+            )
+            if not (
+                horizontal <= model.common_horizontal + model.relative_horizontal
+                and vertical <= model.common_vertical + model.relative_vertical
+            ):
+                reasons.append(f"{seen}, beyond the position-error model")
+            else:
+                logger.warning("%s, within the position-error model: released", seen)
+        return tuple(reasons)
 
     def wait(self, condition: Callable[[], bool], timeout_s: float, what: str) -> None:
         deadline = time.monotonic() + timeout_s

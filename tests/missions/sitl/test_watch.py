@@ -9,7 +9,6 @@ from types import SimpleNamespace
 
 from missions.export.items import MavCmd, MavFrame, MissionItem
 from missions.position_error import PRESETS
-from missions.sitl.harness import SitlFlightOptions, _hold_reasons
 from missions.sitl.watch import HoldWatch
 
 HOLD = MissionItem(seq=2, frame=MavFrame.GLOBAL_RELATIVE_ALT_INT, command=MavCmd.NAV_LOITER_UNLIM,
@@ -78,14 +77,13 @@ def test_the_worst_is_over_the_last_window_only():
 
 def test_an_unsteady_hold_is_released_within_the_model_and_refused_beyond_it():
     """The ``sitl`` model: 7 cm across (4 common + 3 relative), 6 cm up or down."""
-    options = SitlFlightOptions()
     model = PRESETS["sitl"]
     for up, refused in ((0.05, False), (0.08, True)):
         watch, link = _watch()
         link.send(_current(2))
         for t in (10.0, 11.0, 12.0, 13.0):
             link.send(_at(t, north=0.04, up=up if t == 12.0 else 0.0, speed=0.12))
-        reasons = _hold_reasons(watch, options, model)
+        reasons = watch.unsteady_reasons(model, 300.0, 3.0)
         assert bool(reasons) == refused
         if refused:
             assert reasons[0].startswith("drone1: not steady") and "0.080 m up" in reasons[0]
@@ -96,4 +94,4 @@ def test_a_steady_hold_has_nothing_to_say():
     link.send(_current(2))
     for t in (10.0, 11.0, 12.0, 13.5):
         link.send(_at(t, north=0.01, speed=0.01))
-    assert _hold_reasons(watch, SitlFlightOptions(), PRESETS["sitl"]) == ()
+    assert watch.unsteady_reasons(PRESETS["sitl"], 300.0, 3.0) == ()
