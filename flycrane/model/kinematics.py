@@ -7,6 +7,8 @@ returned with the leading axis kept) and is vectorized over N.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -139,3 +141,36 @@ def cable_vectors(
 ) -> NDArray[np.float64]:
     """Vectors A_i - b_i from each platform point to its drone, shape (N, 6, 3)."""
     return drones[:, CABLE_DRONE, :] - platform_points
+
+
+@dataclass(frozen=True)
+class Poses:
+    """Forward kinematics of N configurations, computed once for the formulas that read it
+    (statics, pose error, tracks, logs)."""
+
+    q: NDArray[np.float64]  #: (N, 9) the configurations
+    rotation: NDArray[np.float64]  #: (N, 3, 3) the platform's orientation R (paper eq. 1)
+    platform_points: NDArray[np.float64]  #: (N, 6, 3) cable attachments b_i
+    drones: NDArray[np.float64]  #: (N, 3, 3) drone positions A_k (design.md eq. 2)
+
+    @property
+    def cables(self) -> NDArray[np.float64]:
+        """Vectors A_i - b_i from each platform point to its drone, shape (N, 6, 3)."""
+        return cable_vectors(self.platform_points, self.drones)
+
+    def rows(self, index: NDArray[np.bool_] | NDArray[np.int64]) -> Poses:
+        """The poses of the configurations ``q[index]``."""
+        return Poses(
+            self.q[index], self.rotation[index], self.platform_points[index], self.drones[index]
+        )
+
+
+def forward_kinematics(system: CableSystem, q: ArrayLike) -> Poses:
+    """Orientation, attachment points and drones of configurations q, (9,) or (N, 9)."""
+    q = as_configurations(q)
+    return Poses(
+        q,
+        matrix_from_tilt_torsion(q[:, 3:6]),
+        platform_points_from_configuration(system, q),
+        drone_positions_from_configuration(system, q),
+    )

@@ -31,25 +31,17 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from flycrane.model.cable_system import CABLE_DRONE, CableSystem
-from flycrane.model.kinematics import (
-    as_configurations,
-    drone_positions_from_configuration,
-    matrix_from_tilt_torsion,
-    platform_points_from_configuration,
-)
-from flycrane.model.statics import screw_jacobian_from_points
+from flycrane.model.kinematics import Poses, forward_kinematics
+from flycrane.model.statics import screw_jacobian
 
 
-def pose_sensitivity(system: CableSystem, q: ArrayLike) -> NDArray[np.float64]:
-    """G = d(p, w) / d(A_1, A_2, A_3) at configurations q (N, 9): (N, 6, 9), the platform's
-    twist per metre of each drone coordinate (module docstring)."""
-    q = as_configurations(q)
-    platform = platform_points_from_configuration(system, q)
-    drones = drone_positions_from_configuration(system, q)
-    jacobian = screw_jacobian_from_points(q[:, :3], platform, drones)  # (N, 6, 6)
-    u = drones[:, CABLE_DRONE, :] - platform
+def pose_sensitivity(poses: Poses) -> NDArray[np.float64]:
+    """G = d(p, w) / d(A_1, A_2, A_3) at N poses: (N, 6, 9), the platform's twist per metre
+    of each drone coordinate (module docstring)."""
+    jacobian = screw_jacobian(poses)  # (N, 6, 6)
+    u = poses.cables
     u /= np.linalg.norm(u, axis=-1, keepdims=True)
-    m = np.zeros((len(q), 6, 9))
+    m = np.zeros((len(poses.q), 6, 9))
     for i, k in enumerate(CABLE_DRONE):
         m[:, i, 3 * k : 3 * k + 3] = u[:, i]
     return np.asarray(np.linalg.solve(np.transpose(jacobian, (0, 2, 1)), m), dtype=np.float64)
@@ -58,10 +50,9 @@ def pose_sensitivity(system: CableSystem, q: ArrayLike) -> NDArray[np.float64]:
 def point_sensitivity(system: CableSystem, q: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
     """L = d(point) / d(drones) of platform-frame points (P, 3) at configurations q (N, 9):
     (N, P, 3, 9)."""
-    q = as_configurations(q)
-    rotation = matrix_from_tilt_torsion(q[:, 3:6])
-    r = np.einsum("nab,pb->npa", rotation, np.asarray(points, dtype=float).reshape(-1, 3))
-    g = pose_sensitivity(system, q)
+    poses = forward_kinematics(system, q)
+    r = np.einsum("nab,pb->npa", poses.rotation, np.asarray(points, dtype=float).reshape(-1, 3))
+    g = pose_sensitivity(poses)
     # dp + dw x r = dp - r x dw
     cross = np.zeros(r.shape + (3,))
     cross[..., 0, 1], cross[..., 0, 2], cross[..., 1, 2] = -r[..., 2], r[..., 1], -r[..., 0]

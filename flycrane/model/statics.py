@@ -13,13 +13,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from flycrane.model.cable_system import CABLE_DRONE, CableSystem
-from flycrane.model.kinematics import (
-    as_configurations,
-    cable_vectors,
-    drone_positions_from_configuration,
-    matrix_from_tilt_torsion,
-    platform_points_from_configuration,
-)
+from flycrane.model.kinematics import Poses, cable_vectors, forward_kinematics
 from flycrane.model.system_spec import DRONE_CABLES
 
 #: J counts as singular below this Hadamard ratio |det J| / prod(column norms) (1 for
@@ -28,31 +22,27 @@ from flycrane.model.system_spec import DRONE_CABLES
 SINGULARITY_THRESHOLD = 1e-12
 
 
-def screw_jacobian(system: CableSystem, q: ArrayLike) -> NDArray[np.float64]:
+def screw_jacobian(poses: Poses) -> NDArray[np.float64]:
     """Screw Jacobian ``J[:, i] = [u_i ; (b_i - p) x u_i]`` at P in world axes, (N, 6, 6)."""
-    q = as_configurations(q)
-    return screw_jacobian_from_points(
-        q[:, :3],
-        platform_points_from_configuration(system, q),
-        drone_positions_from_configuration(system, q),
-    )
+    return screw_jacobian_from_points(poses.q[:, :3], poses.platform_points, poses.drones)
 
 
 def screw_jacobian_from_points(
     position: NDArray[np.float64], platform: NDArray[np.float64], drones: NDArray[np.float64]
 ) -> NDArray[np.float64]:
-    """Screw Jacobian from P (N, 3), the points b_i (N, 6, 3) and the drones A_k (N, 3, 3)."""
+    """Screw Jacobian from P (N, 3), the points b_i (N, 6, 3) and the drones A_k (N, 3, 3),
+    where they do not come from a configuration (the direct kinematics' iterates)."""
     u = cable_vectors(platform, drones)
     u /= np.linalg.norm(u, axis=-1, keepdims=True)
     moment = np.cross(platform - position[:, None, :], u)
     return np.concatenate([u, moment], axis=-1).transpose(0, 2, 1)
 
 
-def nominal_wrench(system: CableSystem, q: ArrayLike) -> NDArray[np.float64]:
-    """Wrench the cables must supply, ``w0 = -[m g_vec ; c x (m g_vec)]``, shape (N, 6)."""
-    q = as_configurations(q)
+def nominal_wrench(system: CableSystem, rotation: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Wrench the cables must supply, ``w0 = -[m g_vec ; c x (m g_vec)]``, shape (N, 6), for
+    platform orientations R (N, 3, 3)."""
     weight = np.array([0.0, 0.0, -system.platform_mass * system.gravity])
-    c = matrix_from_tilt_torsion(q[:, 3:6]) @ system.com_offset
+    c = rotation @ system.com_offset
     return -np.concatenate([np.broadcast_to(weight, c.shape), np.cross(c, weight)], axis=-1)
 
 
@@ -78,7 +68,7 @@ def tension_half_widths(system: CableSystem, jacobian: NDArray[np.float64]) -> N
 
 def thrust_vectors(
     system: CableSystem,
-    q: ArrayLike,
+    poses: Poses,
     tensions: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """Thrust each drone must supply, ``T_k = -(M_k g_vec + f_i w_i + f_j w_j)`` (eq. 7).
@@ -86,14 +76,7 @@ def thrust_vectors(
     w_i is the unit vector from the drone to its platform point. ``tensions`` is (N, 6),
     giving (N, 3, 3), or (N, 6, C) for C tension vectors at once, giving (N, 3, 3, C).
     """
-    q = as_configurations(q)
-    w = (
-        -cable_vectors(
-            platform_points_from_configuration(system, q),
-            drone_positions_from_configuration(system, q),
-        )
-        / system.cable_lengths[:, None]
-    )
+    w = -poses.cables / system.cable_lengths[:, None]
     stacked = tensions if tensions.ndim == 3 else tensions[..., None]
     pull = w[..., None] * stacked[:, :, None, :]  # (N, 6, 3, C)
     first, second = np.array(DRONE_CABLES).T
@@ -105,7 +88,7 @@ def thrust_vectors(
 
 def thrust_bounds(
     system: CableSystem,
-    q: ArrayLike,
+    poses: Poses,
     f0: NDArray[np.float64],
     half_width: NDArray[np.float64],
 ) -> NDArray[np.float64]:
@@ -119,7 +102,7 @@ def thrust_bounds(
     for i, j in DRONE_CABLES:
         corners[:, i] += signs[0] * half_width[:, i, None]
         corners[:, j] += signs[1] * half_width[:, j, None]
-    return np.linalg.norm(thrust_vectors(system, q, corners), axis=2).max(axis=-1)
+    return np.linalg.norm(thrust_vectors(system, poses, corners), axis=2).max(axis=-1)
 
 
 @dataclass(frozen=True)
@@ -154,9 +137,9 @@ class StaticsReport:
 
 def evaluate_statics(system: CableSystem, q: ArrayLike) -> StaticsReport:
     """Tensions, tension ranges, thrusts and margins of configurations (eq. 3-7)."""
-    q = as_configurations(q)
-    n = len(q)
-    jacobian = screw_jacobian(system, q)
+    poses = forward_kinematics(system, q)
+    q, n = poses.q, len(poses.q)
+    jacobian = screw_jacobian(poses)
     singular = singular_jacobians(jacobian)
     regular = ~singular
     f0 = np.full((n, 6), np.inf)
@@ -164,11 +147,11 @@ def evaluate_statics(system: CableSystem, q: ArrayLike) -> StaticsReport:
     thrust = np.full((n, 3, 3), np.inf)
     bound = np.full((n, 3), np.inf)
     if regular.any():
-        jr, qr = jacobian[regular], q[regular]
-        f0[regular] = nominal_tensions(jr, nominal_wrench(system, qr))
+        jr, pr = jacobian[regular], poses.rows(regular)
+        f0[regular] = nominal_tensions(jr, nominal_wrench(system, pr.rotation))
         v[regular] = tension_half_widths(system, jr)
-        thrust[regular] = thrust_vectors(system, qr, f0[regular])
-        bound[regular] = thrust_bounds(system, qr, f0[regular], v[regular])
+        thrust[regular] = thrust_vectors(system, pr, f0[regular])
+        bound[regular] = thrust_bounds(system, pr, f0[regular], v[regular])
     low = np.full((n, 6), -np.inf)
     low[regular] = f0[regular] - v[regular]
     high = f0 + v

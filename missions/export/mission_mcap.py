@@ -33,11 +33,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 from scipy.spatial.transform import Rotation
 
 from flycrane.model.cable_system import CABLE_DRONE, CableSystem
-from flycrane.model.kinematics import (
-    drone_positions_from_configuration,
-    matrix_from_tilt_torsion,
-    platform_points_from_configuration,
-)
+from flycrane.model.kinematics import forward_kinematics, matrix_from_tilt_torsion
 from flycrane.world.scene import Box, Cylinder, Mesh, SceneSpec, Sphere
 from missions.export.formats import mission_json
 from missions.export.items import DroneMission
@@ -175,10 +171,9 @@ def write_mcap(path: str | Path, inputs: LogInputs, rate: float = 10.0) -> Path:
     lat, lon, alt = geodetic_from_enu(track.drones[samples], inputs.options.origin)
     # The crane's geometry for all samples at once (scipy and numpy once, not per sample).
     shown = track.q[samples]
-    rotations = matrix_from_tilt_torsion(shown[:, 3:6])
+    poses = forward_kinematics(inputs.system, shown)
+    rotations, points, drones = poses.rotation, poses.platform_points, poses.drones
     quaternions = Rotation.from_matrix(rotations).as_quat()
-    points = platform_points_from_configuration(inputs.system, shown)
-    drones = drone_positions_from_configuration(inputs.system, shown)
     for n, k in enumerate(samples):
         stamp, q = stamp_of(track.time[k]), track.q[k]
         crane = _crane_update(inputs, q, rotations[n], points[n], drones[n], stamp)

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.model.cable_system import CableSystem
-from flycrane.model.kinematics import drone_positions_from_configuration, matrix_from_tilt_torsion
+from flycrane.model.kinematics import forward_kinematics
 from flycrane.planning.metrics import resample_path
 from flycrane.planning.state_space import ConfigurationSpace
 from missions.options import MissionOptions
@@ -192,11 +192,9 @@ def track_from_path(
     resolution: float = TRACK_RESOLUTION,
 ) -> Track:
     """Dense track of a planned path with its shared time law."""
-    q = resample_path(path, space, resolution)
-    drones = drone_positions_from_configuration(system, q)
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(drones, axis=0), axis=-1).max(1) > 0])
-    q, drones = q[keep], drones[keep]
-    if len(q) < 2:
-        return Track(np.zeros(1), q, drones)
-    times = time_law(drones, matrix_from_tilt_torsion(q[:, 3:6]), options)
-    return Track(times, q, drones)
+    poses = forward_kinematics(system, resample_path(path, space, resolution))
+    step = np.linalg.norm(np.diff(poses.drones, axis=0), axis=-1).max(1)
+    poses = poses.rows(np.concatenate([[True], step > 0]))
+    if len(poses.q) < 2:
+        return Track(np.zeros(1), poses.q, poses.drones)
+    return Track(time_law(poses.drones, poses.rotation, options), poses.q, poses.drones)
