@@ -139,17 +139,9 @@ def run_task(
                 reason = f"mission generation: {unflyable} (seeds tried: {tried})"
                 raise _Failed("failed", reason) from None
             _write(directory, resolved, planned, built, limits)
-        except MissionFailure as failure:
-            reason = f"mission generation: {failure}"
-            return directory.write_summary(_failure(directory, outcome, "failed", reason, attempts))
-        except Cancelled as cancelled:
-            return directory.write_summary(
-                _failure(directory, outcome, "cancelled", str(cancelled), attempts)
-            )
-        except _Failed as failure:
-            return directory.write_summary(
-                _failure(directory, outcome, failure.status, failure.reason, attempts)
-            )
+        except (_Failed, MissionFailure, Cancelled) as failure:
+            status, reason = _ending(failure)
+            return directory.write_summary(_failure(directory, outcome, status, reason, attempts))
         break
     done = TaskOutcome(
         **{
@@ -162,6 +154,15 @@ def run_task(
     )
     logger.info("task done in %s: %d waypoints", directory.path, built.summary.waypoints)
     return directory.write_summary(done)
+
+
+def _ending(failure: Exception) -> tuple[Status, str]:
+    """Status and reason of what ended a task before its files were all written."""
+    if isinstance(failure, _Failed):
+        return failure.status, failure.reason
+    if isinstance(failure, Cancelled):
+        return "cancelled", str(failure)
+    return "failed", f"mission generation: {failure}"
 
 
 def _failure(
