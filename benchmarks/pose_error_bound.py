@@ -72,8 +72,7 @@ def measure(flight: Path, model_name: str) -> dict:
     displacement = np.linalg.norm(flown_points - planned_points, axis=-1).max(axis=1)
     model = PRESETS[model_name]
     common = (model.common_horizontal, model.common_vertical)
-    own = (2 / 3 * model.relative_horizontal, 2 / 3 * model.relative_vertical)
-    bound = displacement_bound(system, planned, points, common, own).max(axis=1)
+    bound = displacement_bound(system, planned, points, common, model.own).max(axis=1)
     keep = np.isfinite(displacement) & np.isfinite(bound)
     return {
         "flight": str(flight),

@@ -62,6 +62,12 @@ class PositionErrorModel(BaseModel):
     )
 
     @property
+    def own(self) -> tuple[float, float]:
+        """Each drone's own error about the three's mean [m] (horizontal radius, vertical
+        half-height): three errors pairwise within r are each within 2r/3 of their mean."""
+        return 2 / 3 * self.relative_horizontal, 2 / 3 * self.relative_vertical
+
+    @property
     def obstacle_clearance(self) -> float:
         """The least distance the plan keeps from every obstacle [m] (module docstring)."""
         common = max(self.common_horizontal, self.common_vertical)

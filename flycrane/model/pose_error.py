@@ -71,9 +71,30 @@ def displacement_bound(
     (N, 9) when the drones share an error within ``common`` (horizontal, vertical) and each
     has its own within ``own`` (horizontal radius, vertical half-height): (N, P) (module
     docstring)."""
-    sensitivity = point_sensitivity(system, q, points)  # (N, P, 3, 9)
-    blocks = sensitivity.reshape(sensitivity.shape[:-1] + (3, 3))  # (N, P, 3, drone, coord)
+    blocks = _drone_blocks(system, q, points)
     horizontal = np.linalg.norm(blocks[..., :2], ord=2, axis=(-3, -1))  # (N, P, drone)
     vertical = np.linalg.norm(blocks[..., 2], axis=-2)  # (N, P, drone)
     own_part = (horizontal * own[0] + vertical * own[1]).sum(axis=-1)
     return float(np.hypot(*common)) + own_part
+
+
+def height_bound(
+    system: CableSystem,
+    q: ArrayLike,
+    points: ArrayLike,
+    common_vertical: float,
+    own: tuple[float, float],
+) -> NDArray[np.float64]:
+    """Bound on the vertical displacement [m] of platform-frame points (P, 3) at
+    configurations q (N, 9), what a clearance above a horizontal surface must cover:
+    ``c_v + sum_k (||L_k[2, :2]|| h + |L_k[2, 2]| v)``, the height row of
+    :func:`displacement_bound`'s sum: (N, P)."""
+    rows = _drone_blocks(system, q, points)[..., 2, :, :]  # (N, P, drone, coord)
+    own_part = np.linalg.norm(rows[..., :2], axis=-1) * own[0] + np.abs(rows[..., 2]) * own[1]
+    return common_vertical + own_part.sum(axis=-1)
+
+
+def _drone_blocks(system: CableSystem, q: ArrayLike, points: ArrayLike) -> NDArray[np.float64]:
+    """:func:`point_sensitivity` by drone: (N, P, 3, drone, coordinate)."""
+    sensitivity = point_sensitivity(system, q, points)
+    return sensitivity.reshape(sensitivity.shape[:-1] + (3, 3))

@@ -51,6 +51,12 @@ class Body:
     margin: float = 0.0
 
 
+def box_corners(body: Body) -> NDArray[np.float64]:
+    """The eight corners (8, 3) of a body's bounding box, in its parent frame."""
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    return body.box_center + (signs * body.half_size) @ body.rotation.T
+
+
 def _bvh(vertices: NDArray, faces: NDArray) -> fcl.BVHModel:
     model = fcl.BVHModel()
     model.beginModel(len(vertices), len(faces))

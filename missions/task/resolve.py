@@ -28,7 +28,7 @@ from missions.options import MAX_MISSION_DURATION_S
 from missions.position_error import position_error_model
 from missions.task.spec import PlatformPose, TaskSpec
 from missions.trajectory.tracks import least_duration
-from missions.trajectory.vertical_legs import VerticalLeg, clear_end
+from missions.trajectory.vertical_legs import VerticalLeg, clear_end, hold_height
 
 
 @dataclass(frozen=True)
@@ -115,10 +115,8 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
     system, scene, scene_dir = task_specs(task, base_dir)
     # The plan keeps the clearance the position-error model asks for (or the scene's, if
     # larger): docs/missions.md "Clearance".
-    clearance = max(
-        scene.collision.obstacle_clearance,
-        position_error_model(task.mission.position_error).obstacle_clearance,
-    )
+    model = position_error_model(task.mission.position_error)
+    clearance = max(scene.collision.obstacle_clearance, model.obstacle_clearance)
     if clearance != scene.collision.obstacle_clearance:
         try:
             scene = scene.model_copy(
@@ -140,7 +138,7 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
     except PayloadMeshes:
         raise InputError([FieldProblem("planner.algorithm", MESH_REASON)]) from None
     checkers = Checkers.of(problem.validity)
-    ends, legs = [], []
+    ends, legs, hold = [], [], hold_height(problem, model, clearance)
     ends_given = (("start", task.start, scene.start), ("goal", task.goal, scene.goal))
     for what, given, default in ends_given:
         if isinstance(given, PlatformPose):
@@ -150,7 +148,7 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
         else:
             q = np.array(default if given is None else given, dtype=float)
         approach = task.mission.set_down_approach if what == "goal" else 0.0
-        planned, leg = clear_end(q, checkers.planning, checkers.real, what, approach)
+        planned, leg = clear_end(q, checkers.planning, checkers.real, what, approach, hold)
         ends.append(planned)
         legs.append(leg)
     drones = drone_positions_from_configuration(problem.system, np.stack(ends))

@@ -13,16 +13,26 @@ the ground) is planned from or to the nearest raised pose that keeps the clearan
   the take-off that lifts the load from its surfaces, before the drones are released
   together (take-offs do not lift together, :mod:`missions.autopilots.ardupilot`, so the
   lift happens below the clearance, where the load was resting anyway).
+- **The holds keep the bound.** The drones hold at a raised end for seconds, where a
+  centimetre of their errors can tilt a long load by more (the hanging platform amplifies
+  them): the raised pose is also high enough for the position-error model's bound on how
+  far the platform and the payload may sink below it (:func:`hold_height`), where that
+  stays clear.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from flycrane.model.pose_error import height_bound
+from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import InvalidConfigurationError, ValidityChecker
+from flycrane.world.bodies import box_corners
+from missions.position_error import PositionErrorModel
 
 #: Raised poses are looked for up to this height above the given one, in this step [m].
 MAX_RAISE = 1.0
@@ -60,16 +70,35 @@ class VerticalLeg:
         )
 
 
+def hold_height(
+    problem: PlanningProblem, model: PositionErrorModel, clearance: float
+) -> Callable[[NDArray[np.float64]], float]:
+    """How much higher [m] than the lowest pose that keeps ``clearance`` a hold at pose q
+    must be: the bound of ``model``'s errors on how far the platform's and the payload's
+    boxes may sink (:func:`~flycrane.model.pose_error.height_bound` at their corners, where
+    a bound convex in the point is largest), less the clearance; 0 where that covers it.
+    The bound does not change as the pose rises."""
+    corners = np.concatenate([box_corners(b) for b in problem.validity.collision.platform_fixed])
+
+    def needed(q: NDArray[np.float64]) -> float:
+        bound = height_bound(problem.system, q, corners, model.common_vertical, model.own)
+        return max(0.0, float(bound.max()) - clearance)
+
+    return needed
+
+
 def clear_end(
     q: NDArray[np.float64],
     validity: ValidityChecker,
     real: ValidityChecker,
     what: str,
     approach: float = 0.0,
+    hold: Callable[[NDArray[np.float64]], float] | None = None,
 ) -> tuple[NDArray[np.float64], VerticalLeg | None]:
     """The pose to plan from or to for a start or goal ``q``, and its vertical leg if it
     needs one (module docstring): the lowest clear pose above ``q``, raised by up to
-    ``approach`` [m] more where that stays clear. ``validity`` keeps the plan's clearance,
+    ``approach`` [m] more, or what ``hold`` (:func:`hold_height`) says the hold needs if
+    that is more, where that stays clear. ``validity`` keeps the plan's clearance,
     ``real`` is the same on the real obstacles.
 
     Raises
@@ -85,6 +114,7 @@ def clear_end(
     if planning.out_of_bounds or planning.violations:
         raise InvalidConfigurationError(what, planning)
     surfaces = tuple(sorted({c.other for c in planning.contacts}))
+    approach = max(approach, hold(q)) if hold else approach
     up = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 
     def clear(height: float) -> bool:

@@ -10,7 +10,7 @@ from flycrane.model.kinematics import (
     drone_positions_from_configuration,
     matrix_from_tilt_torsion,
 )
-from flycrane.model.pose_error import displacement_bound, point_sensitivity
+from flycrane.model.pose_error import displacement_bound, height_bound, point_sensitivity
 from flycrane.model.statics import evaluate_statics
 from flycrane.planning.problem import PlanningProblem
 
@@ -77,4 +77,31 @@ def test_the_bound_covers_sampled_errors_and_is_not_loose(configurations):
         bound = displacement_bound(system, q, POINTS, common, own)[0]
         assert np.all(displacement <= bound * 1.02 + 1e-4), (displacement.max(0), bound)
         worst.append(displacement.max(0) / bound)
+    assert np.median(worst) > 0.5
+
+
+def test_the_height_bound_covers_sampled_errors_and_is_not_loose(configurations):
+    """The same for the vertical displacement alone: each drone's horizontal error at its
+    bound in a random direction, its vertical error at a bound, the common error at its
+    vertical bound; solved exactly, never beyond the bound, and the worst sample at least
+    half of it. It is never more than the whole displacement's bound."""
+    system, qs = configurations
+    common, own = (0.04, 0.04), (0.02, 0.013)
+    rng = np.random.default_rng(4)
+    worst = []
+    for q in qs:
+        drones = drone_positions_from_configuration(system, q)[0]
+        angle = rng.uniform(0, 2 * np.pi, (300, 3))
+        errors = np.stack(
+            [own[0] * np.cos(angle), own[0] * np.sin(angle),
+             own[1] * rng.choice([-1.0, 1.0], (300, 3))], axis=-1,
+        )  # fmt: skip
+        shift = np.array([0.0, 0.0, common[1]]) * rng.choice([-1.0, 1.0], (300, 1, 1))
+        moved = moved_points(system, q, drones[None] + errors + shift)
+        rest = moved_points(system, q, drones[None])[0]
+        sink = np.abs(moved - rest)[..., 2]  # (300, P)
+        bound = height_bound(system, q, POINTS, common[1], own)[0]
+        assert np.all(sink <= bound * 1.02 + 1e-4), (sink.max(0), bound)
+        assert np.all(bound <= displacement_bound(system, q, POINTS, common, own)[0] + 1e-12)
+        worst.append(sink.max(0) / bound)
     assert np.median(worst) > 0.5

@@ -18,14 +18,18 @@ from flycrane.cli import main
 from flycrane.errors import InputError
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.kinematics import drone_positions_from_configuration
+from flycrane.model.pose_error import height_bound
 from flycrane.planning.planners import PlannerOptions
+from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import InvalidConfigurationError
+from flycrane.world.bodies import box_corners
 from flycrane.world.scene import load_scene
 from missions.autopilots.ardupilot import ArduCopterSettings, team_parameters
 from missions.autopilots.spline import SpeedLimits
 from missions.export.formats import mission_from_json
 from missions.export.items import MavCmd
 from missions.options import MissionOptions
+from missions.position_error import PRESETS
 from missions.task.build import build
 from missions.task.pipeline import run_task
 from missions.task.resolve import resolve_task
@@ -120,7 +124,15 @@ def test_rescue_missions_hold_above_the_start_and_set_the_bridge_down_on_the_roo
     # above the roofs needs 3 cm more for 8 cm of clearance
     approach = MissionOptions().set_down_approach
     assert summary["set_down"]["height"] == pytest.approx(0.03 + approach, abs=0.011)
+    # the start is lifted to the lowest pose 8 cm clear (5 cm above the ground needs 3 cm
+    # more), and then by what the bound of the model's errors at the hold asks beyond that
+    model = PRESETS["rtk"]
+    checker = PlanningProblem.from_scene(scene).validity.collision
+    corners = np.concatenate([box_corners(b) for b in checker.platform_fixed])
+    bound = height_bound(system, scene.start, corners, model.common_vertical, model.own).max()
+    assert bound > 0.08
     lift = summary["lift_off"]["height"]
+    assert lift == pytest.approx(0.03 + bound - 0.08, abs=0.011)
     raised = np.array(scene.start) + [0, 0, lift, 0, 0, 0, 0, 0, 0]
     ends = drone_positions_from_configuration(system, [raised, scene.goal])
     origin = MissionOptions().origin
