@@ -22,7 +22,6 @@ from missions.export.builder import HOLD_SEQ, RELEASE_SEQ, build_missions
 from missions.export.items import DroneMission
 from missions.geodesy import geodetic_from_enu
 from missions.options import MAX_MISSION_DURATION_S
-from missions.position_error import position_error_model
 from missions.task.directory import MissionSummary, Release, Tracks
 from missions.task.resolve import ResolvedTask
 from missions.trajectory.annotations import Annotations, annotate
@@ -170,7 +169,7 @@ def build(
         items_per_drone=tuple(len(m.items) for m in missions),
         release=Release(hold_seq=HOLD_SEQ, release_seq=RELEASE_SEQ),
         obstacle_clearance=problem.scene.collision.obstacle_clearance,
-        position_error=position_error_model(options.position_error),
+        position_error=resolved.position_error,
         lift_off=resolved.lift_off,
         set_down=flight.set_down,
     )

@@ -28,7 +28,6 @@ from missions.export.mission_mcap import LogInputs, write_mcap
 from missions.export.parameter_file import parameter_file_text
 from missions.export.trajectory_file import trajectory_text
 from missions.geodesy import geodetic_from_enu
-from missions.position_error import position_error_model
 from missions.task.build import (
     BuiltMissions,
     Cancelled,
@@ -209,9 +208,9 @@ def _write(
     directory.write_tracks(built.tracks)
     check()
     settings = built.flight.settings
-    team, why = team_parameters(position_error_model(options.position_error).height_source)
-    parameters = {**settings.parameters(), **team}
-    parm = parameter_file_text(parameters, {**settings.reasons(), **why}, PARM_HEADER)
+    team, why = team_parameters(resolved.position_error.height_source)
+    parameters, reasons = {**settings.parameters(), **team}, {**settings.reasons(), **why}
+    parm = parameter_file_text(parameters, reasons, PARM_HEADER)
     trajectory = built.trajectory
     homes = geodetic_from_enu(trajectory.homes, options.origin)
     for mission in built.missions:

@@ -25,7 +25,7 @@ from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import ValidityChecker
 from flycrane.world.scene import SceneSpec, load_scene
 from missions.options import MAX_MISSION_DURATION_S
-from missions.position_error import position_error_model
+from missions.position_error import PositionErrorModel, position_error_model
 from missions.task.spec import PlatformPose, TaskSpec
 from missions.trajectory.tracks import least_duration
 from missions.trajectory.vertical_legs import VerticalLeg, clear_end, hold_height
@@ -62,6 +62,7 @@ class ResolvedTask:
     checkers: Checkers
     start: NDArray[np.float64]
     goal: NDArray[np.float64]
+    position_error: PositionErrorModel  #: ``task.mission.position_error``, resolved
     lift_off: VerticalLeg | None = None
     set_down: VerticalLeg | None = None
 
@@ -161,5 +162,6 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
             f"{MAX_MISSION_DURATION_S:.0f} s a mission may last",
         )])  # fmt: skip
     return ResolvedTask(
-        task, problem, algorithm, checkers, ends[0], ends[1], lift_off=legs[0], set_down=legs[1]
-    )
+        task, problem, algorithm, checkers, ends[0], ends[1], model, lift_off=legs[0],
+        set_down=legs[1],
+    )  # fmt: skip
