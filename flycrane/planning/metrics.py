@@ -24,14 +24,6 @@ from flycrane.planning.state_space import ConfigurationSpace
 METRICS_RESOLUTION = 0.05
 
 
-def resample_path(
-    path: NDArray[np.float64], space: ConfigurationSpace, resolution: float = METRICS_RESOLUTION
-) -> NDArray[np.float64]:
-    """Configurations along a path, at most ``resolution`` apart along its local paths,
-    waypoints kept, (K, 9): :meth:`ConfigurationSpace.discretize_path`."""
-    return space.discretize_path(path, resolution)
-
-
 def mechanical_work(costs: NDArray[np.float64]) -> float:
     """Sum of the positive cost variations along a sequence of costs; +inf if the sequence
     passes an infeasible configuration (cost +inf), where the climb is unbounded."""
@@ -63,7 +55,7 @@ def path_metrics(
     resolution: float = METRICS_RESOLUTION,
 ) -> PathMetrics:
     """avgC, maxC, MW and IC of a path under a cost function (module docstring)."""
-    samples = resample_path(path, space, resolution)
+    samples = space.discretize_path(path, resolution)
     costs = cost(samples)
     steps = space.distance(samples[:-1], samples[1:]) if len(samples) > 1 else np.zeros(0)
     return PathMetrics(

@@ -21,7 +21,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.planning.metrics import METRICS_RESOLUTION, mechanical_work, resample_path
+from flycrane.planning.metrics import METRICS_RESOLUTION, mechanical_work
 from flycrane.planning.state_space import ConfigurationSpace
 
 
@@ -49,7 +49,7 @@ class MechanicalWork:
         return self.cost(q)
 
     def motion_cost(self, path: NDArray[np.float64]) -> float:
-        return mechanical_work(self.cost(resample_path(path, self.space, self.resolution)))
+        return mechanical_work(self.cost(self.space.discretize_path(path, self.resolution)))
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,6 @@ from numpy.typing import NDArray
 
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.kinematics import forward_kinematics
-from flycrane.planning.metrics import resample_path
 from flycrane.planning.state_space import ConfigurationSpace
 from missions.options import MissionOptions
 
@@ -192,7 +191,7 @@ def track_from_path(
     resolution: float = TRACK_RESOLUTION,
 ) -> Track:
     """Dense track of a planned path with its shared time law."""
-    poses = forward_kinematics(system, resample_path(path, space, resolution))
+    poses = forward_kinematics(system, space.discretize_path(path, resolution))
     step = np.linalg.norm(np.diff(poses.drones, axis=0), axis=-1).max(1)
     poses = poses.rows(np.concatenate([[True], step > 0]))
     if len(poses.q) < 2:

@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from flycrane.planning.interpolation import interpolate, wrap_angle
-from flycrane.planning.metrics import mechanical_work, path_metrics, resample_path
+from flycrane.planning.metrics import mechanical_work, path_metrics
 from flycrane.planning.objective import MechanicalWork, PathLength
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
 from flycrane.planning.state_space import ConfigurationSpace
@@ -67,7 +67,7 @@ def test_uniform_samples_stay_in_bounds_and_cover_them():
 
 def test_metrics_by_hand():
     path = np.array([[0, 0, 5, 0, 0, 0, 1, 1, 1.0], [1, 0, 5, 0, 0, 0, 1, 1, 1.0]])
-    samples = resample_path(path, SPACE, 0.1)
+    samples = SPACE.discretize_path(path, 0.1)
     assert len(samples) == 11
     # cost rising linearly with x then: avg = 1.5, max = 2, MW = 1, IC = 1.5 * length 1
     metrics = path_metrics(path, SPACE, lambda q: 1.0 + q[:, 0], resolution=0.1)
