@@ -34,7 +34,7 @@ import numpy as np
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.kinematics import matrix_from_tilt_torsion
 from flycrane.model.system_spec import DRONE_CABLES
-from flycrane.world.bodies import platform_body
+from flycrane.world.bodies import platform_prism
 from flycrane.world.bvh import build_hierarchy, stack
 from flycrane.world.primitives import (
     BOX,
@@ -140,11 +140,7 @@ class CompiledScene:
         obstacles = _primitives(scene.grown_obstacles(), base_dir, settings.obstacle_clearance)
         low, high = _world_boxes(*obstacles)
         payload = _primitives(scene.payload.shapes)
-        prism = platform_body(system, settings.platform_thickness)
-        ring = np.unique(np.round(system.platform_points, 12), axis=0)
-        half = np.array([0.0, 0.0, settings.platform_thickness / 2])
-        vertices = np.concatenate([ring + half, ring - half])
-        assert np.allclose(prism.box_center + prism.half_size, vertices.max(axis=0))
+        vertices, _ = platform_prism(system, settings.platform_thickness)
         params = np.array(
             [
                 settings.drone_radius,
