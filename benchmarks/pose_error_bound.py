@@ -13,7 +13,15 @@ gives at the planned configuration (common part, and each drone's own part as tw
 of the model's relative bound: three errors pairwise within r are each within 2r/3 of
 their mean). Prints the bound's least, median and largest value against the fixed
 clearance the plan keeps, the flown displacement's median and largest, and how many
-samples the bound covers. BENCHMARKS.md ("Planner v3", "Robust margins") records the runs.
+samples the bound covers.
+
+With ``--near D``, the bound on how far the drones' errors can close the gap to the
+nearest obstacle instead, at the samples whose planned configuration is within D [m] of
+one (real obstacles, no clearance): the gradient of that distance in the platform's twist
+(central differences of the checker's clearance), n = its translation part, through the
+sensitivity G: ``|n_xy| c_h + |n_z| c_v + sum_k (||(D G)_k[:2]|| h + |(D G)_k[2]| v)``,
+against the fixed clearance and the gap the flight lost there. BENCHMARKS.md ("Planner v3",
+"Robust margins") records the runs.
 """
 
 from __future__ import annotations
@@ -23,11 +31,17 @@ import json
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.direct_kinematics import configuration_from_drone_positions
-from flycrane.model.kinematics import matrix_from_tilt_torsion
-from flycrane.model.pose_error import displacement_bound
+from flycrane.model.kinematics import (
+    forward_kinematics,
+    matrix_from_tilt_torsion,
+    tilt_torsion_from_matrix,
+)
+from flycrane.model.pose_error import displacement_bound, pose_sensitivity
+from flycrane.planning.problem import PlanningProblem
 from flycrane.world.scene import Box
 from missions.execution.record import ExecutionRecord
 from missions.position_error import PRESETS
@@ -49,21 +63,26 @@ def payload_points(task_dir: Path) -> np.ndarray:
     return np.array(points)
 
 
-def measure(flight: Path, model_name: str) -> dict:
-    task_dir = flight.parent / "plan"
-    directory = TaskDirectory(task_dir)
-    task = directory.task()
-    system = CableSystem.from_spec(task.system)  # type: ignore[arg-type]
-    record = ExecutionRecord.read(flight / "execution.json")
-    clock = record.clock()
-    report = json.loads((flight / "report.json").read_text())
-    series = report["series"]
+def planned_and_flown(flight: Path) -> tuple[CableSystem, np.ndarray, np.ndarray, np.ndarray]:
+    """The system, the report's times, and at each the planned configuration (the drones'
+    trajectories at the group clock's plan time, by the direct kinematics) and the flown
+    one (the report's, from SIM_STATE)."""
+    directory = TaskDirectory(flight.parent / "plan")
+    system = CableSystem.from_spec(directory.task().system)  # type: ignore[arg-type]
+    clock = ExecutionRecord.read(flight / "execution.json").clock()
+    series = json.loads((flight / "report.json").read_text())["series"]
     time = np.array(series["time"]["mission"])
-    flown = np.array(series["true"]["configurations"])
+    flown = np.array(series["true"]["configurations"], dtype=float)
     trajectory = directory.trajectory()
     tau = np.array([clock.tau(clock.start + t) for t in time])
     drones = trajectory.in_task_frame(trajectory.at(tau)[0])
     planned = configuration_from_drone_positions(system, drones, initial=flown).q
+    return system, time, planned, flown
+
+
+def measure(flight: Path, model_name: str) -> dict:
+    task_dir = flight.parent / "plan"
+    system, _, planned, flown = planned_and_flown(flight)
     points = payload_points(task_dir)
     rotation = matrix_from_tilt_torsion(planned[:, 3:6])
     planned_points = planned[:, None, :3] + np.einsum("nab,pb->npa", rotation, points)
@@ -84,11 +103,62 @@ def measure(flight: Path, model_name: str) -> dict:
     }
 
 
+def _twisted(q: np.ndarray, twist: np.ndarray) -> np.ndarray:
+    """q moved by a small platform twist (translation, rotation vector; world axes)."""
+    moved = q.copy()
+    moved[:3] += twist[:3]
+    rotation = Rotation.from_rotvec(twist[3:]).as_matrix() @ matrix_from_tilt_torsion(q[3:6])
+    moved[3:6] = tilt_torsion_from_matrix(rotation)
+    return moved
+
+
+def measure_near(flight: Path, model_name: str, near: float) -> dict:
+    """The bound along the nearest obstacle's direction at the samples within ``near``."""
+    task = TaskDirectory(flight.parent / "plan").task()  # self-contained: specs written out
+    real = PlanningProblem.from_scene(task.scene, task.system).validity.with_clearance(0.0)  # type: ignore[arg-type]
+    system, _, planned, flown = planned_and_flown(flight)
+    model = PRESETS[model_name]
+    h, v = model.own
+    step, rows = 1e-4, []
+    for q, q_flown in zip(planned, flown, strict=True):
+        if not np.isfinite(q).all() or (gap := real.collision.clearance(q)) > near:
+            continue
+        gradient = np.array(
+            [real.collision.clearance(_twisted(q, e * step)) for e in np.eye(6)]
+        ) - np.array([real.collision.clearance(_twisted(q, -e * step)) for e in np.eye(6)])
+        gradient /= 2 * step
+        per_drone = (gradient @ pose_sensitivity(forward_kinematics(system, q))[0]).reshape(3, 3)
+        n = gradient[:3]
+        bound = np.hypot(n[0], n[1]) * model.common_horizontal + abs(n[2]) * model.common_vertical
+        bound += (np.linalg.norm(per_drone[:, :2], axis=1) * h + np.abs(per_drone[:, 2]) * v).sum()
+        rows.append((gap, bound, gap - real.collision.clearance(q_flown)))
+    gap, bound, lost = np.array(rows).T
+    return {
+        "flight": str(flight),
+        "samples": len(rows),
+        "bound": np.percentile(bound, [0, 50, 100]),
+        "at_least_gap": bound[np.argmin(gap)],
+        "lost": lost.max(),
+        "covered": float(np.mean(lost <= bound)),
+        "clearance": model.obstacle_clearance,
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("flights", nargs="+", type=Path)
     parser.add_argument("--model", default="sitl", choices=sorted(PRESETS))
+    parser.add_argument("--near", type=float, help="[m] the nearest obstacle's direction")
     args = parser.parse_args()
+    if args.near is not None:
+        print("flight: samples | bound min/median/max cm | at the least gap | lost max | covered")
+        for r in (measure_near(flight, args.model, args.near) for flight in args.flights):
+            b = r["bound"] * 100
+            print(
+                f"{r['flight']}: {r['samples']} | {b[0]:.1f}/{b[1]:.1f}/{b[2]:.1f} | "
+                f"{100 * r['at_least_gap']:.1f} | {100 * r['lost']:.1f} | {r['covered']:.0%}"
+            )
+        return
     rows = [measure(flight, args.model) for flight in args.flights]
     print("flight: samples | bound min/median/max cm | flown median/max cm | covered | fixed cm")
     for r in rows:
