@@ -55,25 +55,33 @@ def test_the_sensitivity_is_the_derivative_of_the_direct_kinematics(configuratio
     np.testing.assert_allclose(point_sensitivity(system, q, POINTS)[0], numeric, atol=2e-5)
 
 
+def displaced(system, q, own, common_shift, rng):
+    """How far the points move (300, P, 3), solved exactly, for drone errors at the corners
+    of their bounds (the worst a linear map reaches): each drone's own error at its
+    horizontal radius in a random direction and at a vertical bound, plus ``common_shift``
+    with a random sign."""
+    drones = drone_positions_from_configuration(system, q)[0]
+    angle = rng.uniform(0, 2 * np.pi, (300, 3))
+    errors = np.stack(
+        [own[0] * np.cos(angle), own[0] * np.sin(angle),
+         own[1] * rng.choice([-1.0, 1.0], (300, 3))], axis=-1,
+    )  # fmt: skip
+    shift = np.asarray(common_shift) * rng.choice([-1.0, 1.0], (300, 1, 1))
+    moved = moved_points(system, q, drones[None] + errors + shift)
+    return moved - moved_points(system, q, drones[None])[0]
+
+
 def test_the_bound_covers_sampled_errors_and_is_not_loose(configurations):
-    """Drone errors at the corners of their bounds (the worst a linear map reaches), solved
-    exactly: every displacement within the bound (plus the second-order term), and the
-    worst sample at least half of it."""
+    """Drone errors at the corners of their bounds, solved exactly: every displacement
+    within the bound (plus the second-order term), and the worst sample at least half of
+    it."""
     system, qs = configurations
     common, own = (0.04, 0.04), (0.02, 0.013)
     rng = np.random.default_rng(3)
     worst = []
     for q in qs:
-        drones = drone_positions_from_configuration(system, q)[0]
-        angle = rng.uniform(0, 2 * np.pi, (300, 3))
-        errors = np.stack(
-            [own[0] * np.cos(angle), own[0] * np.sin(angle),
-             own[1] * rng.choice([-1.0, 1.0], (300, 3))], axis=-1,
-        )  # fmt: skip
-        shift = np.array([common[0], 0.0, common[1]]) * rng.choice([-1.0, 1.0], (300, 1, 1))
-        moved = moved_points(system, q, drones[None] + errors + shift)
-        rest = moved_points(system, q, drones[None])[0]
-        displacement = np.linalg.norm(moved - rest, axis=-1)  # (300, P)
+        shift = [common[0], 0.0, common[1]]
+        displacement = np.linalg.norm(displaced(system, q, own, shift, rng), axis=-1)
         bound = displacement_bound(system, q, POINTS, common, own)[0]
         assert np.all(displacement <= bound * 1.02 + 1e-4), (displacement.max(0), bound)
         worst.append(displacement.max(0) / bound)
@@ -81,25 +89,15 @@ def test_the_bound_covers_sampled_errors_and_is_not_loose(configurations):
 
 
 def test_the_height_bound_covers_sampled_errors_and_is_not_loose(configurations):
-    """The same for the vertical displacement alone: each drone's horizontal error at its
-    bound in a random direction, its vertical error at a bound, the common error at its
-    vertical bound; solved exactly, never beyond the bound, and the worst sample at least
-    half of it. It is never more than the whole displacement's bound."""
+    """The same for the vertical displacement alone, the common error at its vertical
+    bound: never beyond the bound, and the worst sample at least half of it. It is never
+    more than the whole displacement's bound."""
     system, qs = configurations
     common, own = (0.04, 0.04), (0.02, 0.013)
     rng = np.random.default_rng(4)
     worst = []
     for q in qs:
-        drones = drone_positions_from_configuration(system, q)[0]
-        angle = rng.uniform(0, 2 * np.pi, (300, 3))
-        errors = np.stack(
-            [own[0] * np.cos(angle), own[0] * np.sin(angle),
-             own[1] * rng.choice([-1.0, 1.0], (300, 3))], axis=-1,
-        )  # fmt: skip
-        shift = np.array([0.0, 0.0, common[1]]) * rng.choice([-1.0, 1.0], (300, 1, 1))
-        moved = moved_points(system, q, drones[None] + errors + shift)
-        rest = moved_points(system, q, drones[None])[0]
-        sink = np.abs(moved - rest)[..., 2]  # (300, P)
+        sink = np.abs(displaced(system, q, own, [0.0, 0.0, common[1]], rng)[..., 2])
         bound = height_bound(system, q, POINTS, common[1], own)[0]
         assert np.all(sink <= bound * 1.02 + 1e-4), (sink.max(0), bound)
         assert np.all(bound <= displacement_bound(system, q, POINTS, common, own)[0] + 1e-12)
