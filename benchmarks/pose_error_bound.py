@@ -42,6 +42,7 @@ from flycrane.model.kinematics import (
 )
 from flycrane.model.pose_error import displacement_bound, pose_sensitivity
 from flycrane.planning.problem import PlanningProblem
+from flycrane.world.bodies import box_corners, payload_bodies
 from flycrane.world.scene import Box
 from missions.execution.record import ExecutionRecord
 from missions.position_error import PRESETS
@@ -51,16 +52,12 @@ from missions.task.directory import TaskDirectory
 def payload_points(task_dir: Path) -> np.ndarray:
     """Corners of the payload's boxes and the other shapes' centres, platform frame."""
     scene = TaskDirectory(task_dir).task().scene
-    points = []
-    for shape in scene.payload.shapes:
-        centre = np.array(shape.center)
-        if isinstance(shape, Box):
-            rotation = matrix_from_tilt_torsion(np.array(shape.rotation))
-            signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
-            points += list(centre + (signs * np.array(shape.size) / 2) @ rotation.T)
-        else:
-            points.append(centre)
-    return np.array(points)
+    bodies = payload_bodies(scene, task_dir)  # type: ignore[arg-type]
+    points = [
+        box_corners(body) if isinstance(shape, Box) else np.array([shape.center])
+        for shape, body in zip(scene.payload.shapes, bodies, strict=True)  # type: ignore[union-attr]
+    ]
+    return np.concatenate(points)
 
 
 def planned_and_flown(flight: Path) -> tuple[CableSystem, np.ndarray, np.ndarray, np.ndarray]:
