@@ -17,11 +17,9 @@ samples the bound covers.
 
 With ``--near D``, the bound on how far the drones' errors can close the gap to the
 nearest obstacle instead, at the samples whose planned configuration is within D [m] of
-one (real obstacles, no clearance): the gradient of that distance in the platform's twist
-(central differences of the checker's clearance), n = its translation part, through the
-sensitivity G: ``|n_xy| c_h + |n_z| c_v + sum_k (||(D G)_k[:2]|| h + |(D G)_k[2]| v)``,
-against the fixed clearance and the gap the flight lost there. BENCHMARKS.md ("Planner v3",
-"Robust margins") records the runs.
+one (real obstacles, no clearance): the bound of :class:`flycrane.planning.
+robust_clearance.RobustClearance`, against the fixed clearance and the gap the flight lost
+there. BENCHMARKS.md ("Planner v3", "Robust margins") records the runs.
 """
 
 from __future__ import annotations
@@ -31,17 +29,13 @@ import json
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.direct_kinematics import configuration_from_drone_positions
-from flycrane.model.kinematics import (
-    forward_kinematics,
-    matrix_from_tilt_torsion,
-    tilt_torsion_from_matrix,
-)
-from flycrane.model.pose_error import displacement_bound, pose_sensitivity
+from flycrane.model.kinematics import matrix_from_tilt_torsion
+from flycrane.model.pose_error import displacement_bound
 from flycrane.planning.problem import PlanningProblem
+from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.world.bodies import box_corners, payload_bodies
 from flycrane.world.scene import Box
 from missions.execution.record import ExecutionRecord
@@ -100,39 +94,23 @@ def measure(flight: Path, model_name: str) -> dict:
     }
 
 
-def _twisted(q: np.ndarray, twist: np.ndarray) -> np.ndarray:
-    """q moved by a small platform twist (translation, rotation vector; world axes)."""
-    moved = q.copy()
-    moved[:3] += twist[:3]
-    rotation = Rotation.from_rotvec(twist[3:]).as_matrix() @ matrix_from_tilt_torsion(q[3:6])
-    moved[3:6] = tilt_torsion_from_matrix(rotation)
-    return moved
-
-
 def measure_near(flight: Path, model_name: str, near: float) -> dict:
-    """The bound along the nearest obstacle's direction at the samples within ``near``."""
+    """The bound along the nearest obstacle's direction at the samples within ``near``
+    (:class:`~flycrane.planning.robust_clearance.RobustClearance`)."""
     task = TaskDirectory(flight.parent / "plan").task()  # self-contained: specs written out
     real = PlanningProblem.from_scene(task.scene, task.system).validity.with_clearance(0.0)  # type: ignore[arg-type]
-    system, _, planned, flown = planned_and_flown(flight)
+    _, _, planned, flown = planned_and_flown(flight)
     model = PRESETS[model_name]
-    h, v = model.own
-    step, rows = 1e-4, []
-    for q, q_flown in zip(planned, flown, strict=True):
-        if not np.isfinite(q).all() or (gap := real.collision.clearance(q)) > near:
-            continue
-        gradient = np.array(
-            [real.collision.clearance(_twisted(q, e * step)) for e in np.eye(6)]
-        ) - np.array([real.collision.clearance(_twisted(q, -e * step)) for e in np.eye(6)])
-        gradient /= 2 * step
-        per_drone = (gradient @ pose_sensitivity(forward_kinematics(system, q))[0]).reshape(3, 3)
-        n = gradient[:3]
-        bound = np.hypot(n[0], n[1]) * model.common_horizontal + abs(n[2]) * model.common_vertical
-        bound += (np.linalg.norm(per_drone[:, :2], axis=1) * h + np.abs(per_drone[:, 2]) * v).sum()
-        rows.append((gap, bound, gap - real.collision.clearance(q_flown)))
-    gap, bound, lost = np.array(rows).T
+    common = (model.common_horizontal, model.common_vertical)
+    robust = RobustClearance(real, common, model.own, near=near)
+    keep = np.isfinite(planned).all(axis=1)
+    gap, bound = robust.gaps(planned[keep])
+    close = gap <= near
+    gap, bound, flown = gap[close], bound[close], flown[keep][close]
+    lost = gap - np.array([real.collision.clearance(q) for q in flown])
     return {
         "flight": str(flight),
-        "samples": len(rows),
+        "samples": int(close.sum()),
         "bound": np.percentile(bound, [0, 50, 100]),
         "at_least_gap": bound[np.argmin(gap)],
         "lost": lost.max(),

@@ -27,6 +27,7 @@ from flycrane.planning.interfaces import CompiledChecker, Planner
 from flycrane.planning.metrics import PathMetrics, path_metrics
 from flycrane.planning.refinement import RefinementConfig, refine_path
 from flycrane.planning.result import PlannerResult, PlanningProgress, TerminationCondition
+from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.quantities import MAX_LENGTH, Seed
@@ -207,12 +208,15 @@ def plan(
     progress: Callable[[PlanningProgress], None] | None = None,
     planner: Planner | None = None,
     algorithm: Algorithm | None = None,
+    robust: RobustClearance | None = None,
 ) -> PlanningOutcome:
     """Plan within ``options.time_budget``, then smooth, polish (:meth:`PlannerOptions.
     polishes`), refine for at most ``options.improve_time`` and measure the path.
     ``planner``: one built with settings the options do not carry (benchmarks of variants);
     by default :func:`make_planner`'s. ``algorithm``: the one that runs, where the caller
-    resolved it already (:meth:`PlannerOptions.algorithm_for`)."""
+    resolved it already (:meth:`PlannerOptions.algorithm_for`). ``robust``: the drones'
+    errors a refined path must not be more exposed to than the input (:func:`~flycrane.
+    planning.refinement.refine_path`)."""
     termination = TerminationCondition(options.time_budget, should_stop)
     algorithm = algorithm or options.algorithm_for(validity.payload_meshes)
     planner = planner or make_planner(space, validity, options, algorithm)
@@ -247,6 +251,7 @@ def plan(
             RefinementConfig(),
             TerminationCondition(options.improve_time, should_stop),
             seed=options.seed,
+            robust=robust,
         )
     elapsed = time.perf_counter() - clock
     return PlanningOutcome(result, smooth, path_metrics(smooth, space, validity.cost), elapsed)

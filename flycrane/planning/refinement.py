@@ -32,12 +32,17 @@ what it gains and costs.
 
 Deterministic for a seed (the shortcuts' draws) when it ends by converging, the usual
 case; its termination condition cuts it where it is. Returns the path of least avgC it
-has seen: the input itself if it found none lower.
+has seen: the input itself if it found none lower, or if that path's robust margin
+(:class:`~flycrane.planning.robust_clearance.RobustClearance`, when given) is lower than
+the input's, or below zero where the input's is not. Why: a lower cost comes from
+leaning the drones out, and in some poses that turns the payload much more for the same
+drone errors, past an obstacle too (BENCHMARKS.md, "Anytime improvement").
 """
 
 from __future__ import annotations
 
 import itertools
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
@@ -53,7 +58,10 @@ from flycrane.model.statics_kernel import compiled_statics
 from flycrane.planning.interfaces import Validity
 from flycrane.planning.metrics import METRICS_RESOLUTION
 from flycrane.planning.result import TerminationCondition
+from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.planning.state_space import ConfigurationSpace
+
+logger = logging.getLogger(__name__)
 
 #: Columns of a stretch's statistics: sums over its samples (its first configuration, the
 #: stretch before's last, excluded), then its largest cost and least margins [N].
@@ -61,6 +69,9 @@ TOTAL, COUNT, INTEGRAL, HIGHEST, SLACK, HEADROOM, THRUST = range(7)
 SUMS, MARGINS = [TOTAL, COUNT, INTEGRAL], [SLACK, HEADROOM, THRUST]
 #: Least gain in avgC, relative, that counts as a change: rounding-level moves end a level.
 GAIN_TOLERANCE = 1e-9
+#: How much lower [m] a refined path's robust margin may read than the input's: the two
+#: are minima over samples taken at different places of the curve.
+MARGIN_TOLERANCE = 0.005
 
 
 @dataclass(frozen=True)
@@ -339,9 +350,11 @@ def refine_path(
     config: RefinementConfig,
     termination: TerminationCondition,
     seed: int = 0,
+    robust: RobustClearance | None = None,
 ) -> NDArray[np.float64]:
-    """The path of least avgC found, valid, with the same end points and least margins at
-    least as good (module docstring); the input itself if none was lower. (M', 9)."""
+    """The path of least avgC found, valid, with the same end points, least margins at
+    least as good and, with ``robust``, a robust margin as good (module docstring); the
+    input itself if none was. (M', 9)."""
     path = np.array(path, dtype=float)
     if len(path) < 2 or termination() is not None:
         return path
@@ -361,4 +374,10 @@ def refine_path(
                 break
             unchanged = 0
     refinement.keep_best()
-    return refinement.best
+    best = refinement.best
+    if robust is not None and best is not path:
+        floor = min(robust.margin(path, space), 0.0) - MARGIN_TOLERANCE
+        if (margin := robust.margin(best, space)) < floor:
+            logger.info("refined path refused: robust margin %.3f m below %.3f m", margin, floor)
+            return path
+    return best

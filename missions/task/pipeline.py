@@ -103,6 +103,7 @@ def run_task(
             should_stop=should_stop,
             progress=lambda p: report("planning", p),
             algorithm=resolved.algorithm,
+            robust=resolved.robust,
         )
         result = planned.result
         statistics = {**result.statistics.as_dict(), "smoothing_time": planned.smoothing_time}

@@ -22,6 +22,7 @@ from flycrane.planning.algorithms.bitrrt import MESH_REASON, PayloadMeshes
 from flycrane.planning.planners import Algorithm
 from flycrane.planning.poses import configuration_from_pose
 from flycrane.planning.problem import PlanningProblem
+from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.planning.validity import ValidityChecker
 from flycrane.world.scene import SceneSpec, load_scene
 from missions.options import MAX_MISSION_DURATION_S
@@ -65,6 +66,13 @@ class ResolvedTask:
     position_error: PositionErrorModel  #: ``task.mission.position_error``, resolved
     lift_off: VerticalLeg | None = None
     set_down: VerticalLeg | None = None
+
+    @property
+    def robust(self) -> RobustClearance:
+        """The real obstacles' gaps against the bound of the position-error model's errors."""
+        model = self.position_error
+        common = (model.common_horizontal, model.common_vertical)
+        return RobustClearance(self.checkers.real, common, model.own)
 
     def self_contained(self) -> TaskSpec:
         """The task with its system, scene, start, goal and planner written out, so that

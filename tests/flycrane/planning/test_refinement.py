@@ -19,8 +19,9 @@ from flycrane.model.statics import evaluate_statics
 from flycrane.planning.metrics import METRICS_RESOLUTION, path_metrics
 from flycrane.planning.planners import PlannerOptions, plan
 from flycrane.planning.problem import PlanningProblem
-from flycrane.planning.refinement import RefinementConfig, refine_path
+from flycrane.planning.refinement import MARGIN_TOLERANCE, RefinementConfig, refine_path
 from flycrane.planning.result import TerminationCondition
+from flycrane.planning.robust_clearance import RobustClearance
 
 #: Generous: a refinement of these paths converges in about a second.
 BUDGET = 30.0
@@ -143,3 +144,27 @@ def test_options_are_checked():
         RefinementConfig(shortcuts=-1)
     with pytest.raises(ValueError, match="improve_time"):
         PlannerOptions(improve_time=-1.0)
+
+
+def test_a_path_more_exposed_to_the_drones_errors_is_refused(case, refined):
+    """Given the drones' errors, the refinement returns its path only where that path's
+    robust margin keeps the input's (or zero, the lower), else the input itself; on the
+    Puzzle (seed 2) the refined path passes the slab in a pose the errors turn further,
+    and is refused."""
+    problem, path, seed = case
+    common, own = (0.04, 0.04), (0.02, 0.02 * 2 / 3)  # the ``sitl`` model's
+    robust = RobustClearance(problem.validity.with_clearance(0.0), common, own)
+    guarded = refine_path(
+        path,
+        problem.space,
+        problem.validity,
+        problem.system,
+        RefinementConfig(),
+        TerminationCondition(BUDGET),
+        seed=seed,
+        robust=robust,
+    )
+    floor = min(robust.margin(path, problem.space), 0.0) - MARGIN_TOLERANCE
+    refused = robust.margin(refined, problem.space) < floor
+    np.testing.assert_array_equal(guarded, path if refused else refined)
+    assert refused or problem.scene.name != "puzzle"
