@@ -30,13 +30,16 @@ input's bottleneck, and the refinement takes whole stretches down to their floor
 they would read lower than the input did. ``benchmarks/anytime_improvement.py`` measures
 what it gains and costs.
 
+The robust margin, given the drones' errors (:class:`~flycrane.planning.robust_clearance.
+RobustClearance`): a lower cost comes from leaning the drones out, and in some poses that
+turns the payload much more for the same drone errors, past an obstacle too
+(BENCHMARKS.md, "Anytime improvement"). So a change is also kept only if its new local
+paths keep the robust margin of those they replace (or zero, the lower), and the path
+returned keeps the input's, to :data:`MARGIN_TOLERANCE`: the input itself otherwise.
+
 Deterministic for a seed (the shortcuts' draws) when it ends by converging, the usual
 case; its termination condition cuts it where it is. Returns the path of least avgC it
-has seen: the input itself if it found none lower, or if that path's robust margin
-(:class:`~flycrane.planning.robust_clearance.RobustClearance`, when given) is lower than
-the input's, or below zero where the input's is not. Why: a lower cost comes from
-leaning the drones out, and in some poses that turns the payload much more for the same
-drone errors, past an obstacle too (BENCHMARKS.md, "Anytime improvement").
+has seen: the input itself if it found none lower.
 """
 
 from __future__ import annotations
@@ -69,8 +72,8 @@ TOTAL, COUNT, INTEGRAL, HIGHEST, SLACK, HEADROOM, THRUST = range(7)
 SUMS, MARGINS = [TOTAL, COUNT, INTEGRAL], [SLACK, HEADROOM, THRUST]
 #: Least gain in avgC, relative, that counts as a change: rounding-level moves end a level.
 GAIN_TOLERANCE = 1e-9
-#: How much lower [m] a refined path's robust margin may read than the input's: the two
-#: are minima over samples taken at different places of the curve.
+#: How much lower [m] the refined path's robust margin may read than the input's: each
+#: change keeps its own, but the two are minima over samples at different places.
 MARGIN_TOLERANCE = 0.005
 
 
@@ -199,8 +202,10 @@ class _Refinement:
         system: CableSystem,
         config: RefinementConfig,
         seed: int,
+        robust: RobustClearance | None = None,
     ) -> None:
         self.space, self.validity, self.system, self.config = space, validity, system, config
+        self.robust = robust
         self.rng = np.random.default_rng(seed)
         cost, margins = _margins(system, path[:1])
         #: The first waypoint as a stretch of its own: avgC counts it once.
@@ -221,6 +226,8 @@ class _Refinement:
         c = self.config
         self.stats = _statistics(path[:-1], path[1:], self.space, self.system, c.resolution)
         self.steps = np.full(len(path), c.step)
+        #: Each local path's robust margin, NaN until asked (:meth:`keeps_margin`).
+        self.exposure = np.full(len(path) - 1, np.nan)
 
     def _split(self, path: NDArray) -> NDArray[np.float64]:
         """The path densified at the level's spacing, but for local paths one of whose
@@ -286,16 +293,46 @@ class _Refinement:
         moves = moves[self.validity.is_valid(q[moves])]
         valid = self.validity.motion_is_valid
         moves = np.array([n for n in moves if valid(a[n], q[n]) and valid(q[n], b[n])], int)
+        margins = {
+            n: self.keeps_margin([j[n] - 1, j[n]], [(a[n], q[n]), (q[n], b[n])]) for n in moves
+        }
+        moves = np.array([n for n in moves if margins[n] is not None], int)
         moved = np.zeros(len(j), dtype=bool)
         moved[moves] = True
         self.steps[j[~moved]] *= 0.5
         w = j[moved]
         self.path[w] = q[moved]
         self.stats[w - 1], self.stats[w] = new[: len(j)][moved], new[len(j) :][moved]
+        for n in moves:
+            self.exposure[[j[n] - 1, j[n]]] = margins[n]
         self.steps[w] = np.minimum(self.steps[w] * 1.5, c.max_step)
         for neighbour in (w - 1, w + 1):
             self.steps[neighbour] = np.maximum(self.steps[neighbour], c.wake)
         return bool(len(w))
+
+    def keeps_margin(self, old: list[int], new: list[tuple[NDArray, NDArray]]) -> NDArray | None:
+        """The robust margins of the local paths ``new`` that would replace the path's local
+        paths ``old`` (indices), if the least of them is at least the old ones' least (or
+        zero, the lower); None if not. Without a robust clearance, NaNs."""
+        if self.robust is None:
+            return np.full(len(new), np.nan)
+        floor = min(min(self._exposure(i) for i in old), 0.0)
+        margins = np.full(len(new), np.nan)
+        for m, (a, b) in enumerate(new):
+            margins[m] = self._margin(a, b)
+            if margins[m] < floor:
+                return None
+        return margins
+
+    def _exposure(self, i: int) -> float:
+        if np.isnan(self.exposure[i]):
+            self.exposure[i] = self._margin(self.path[i], self.path[i + 1])
+        return float(self.exposure[i])
+
+    def _margin(self, a: NDArray, b: NDArray) -> float:
+        assert self.robust is not None
+        samples = self.space.discretize(a, b, self.robust.resolution)
+        return self.robust.samples_margin(samples)
 
     def descent(self, q: NDArray) -> NDArray[np.float64]:
         """Unit directions (N, 6) in the metric down log c at configurations (N, 9), over a
@@ -330,13 +367,18 @@ class _Refinement:
         # From the path's end backwards: a splice leaves the indices before it as they were.
         for n in sorted(kept, key=lambda n: -i[n]):
             x, y, s = i[n], k[n], slice(starts[n], starts[n] + counts[n])
+            pieces = list(zip(a[s], b[s], strict=True))
             if taken[x : y + 1].any() or not all(
-                self.validity.motion_is_valid(p, q) for p, q in zip(a[s], b[s], strict=True)
+                self.validity.motion_is_valid(p, q) for p, q in pieces
             ):
+                continue
+            margins = self.keeps_margin(list(range(x, y)), pieces)
+            if margins is None:
                 continue
             taken[x : y + 1] = True
             self.path = np.concatenate([self.path[: x + 1], b[s][:-1], self.path[y:]])
             self.stats = np.concatenate([self.stats[:x], rows[s], self.stats[y:]])
+            self.exposure = np.concatenate([self.exposure[:x], margins, self.exposure[y:]])
             fresh = np.full(counts[n] - 1, c.step)
             self.steps = np.concatenate([self.steps[: x + 1], fresh, self.steps[y:]])
         return bool(taken.any())
@@ -358,7 +400,7 @@ def refine_path(
     path = np.array(path, dtype=float)
     if len(path) < 2 or termination() is not None:
         return path
-    refinement = _Refinement(path, space, validity, system, config, seed)
+    refinement = _Refinement(path, space, validity, system, config, seed, robust)
     phases: tuple[Callable[[], bool], ...] = (
         partial(refinement.sweep, 1),
         partial(refinement.sweep, 0),

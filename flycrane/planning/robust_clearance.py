@@ -6,9 +6,9 @@ The drones' errors move the platform through the direct kinematics
 centimetres of the drones' spread turn a long payload by far more in some poses than in
 others: one fixed clearance is too small in some poses and wasted in others. With g the
 gradient of the gap to the nearest obstacle in the platform's twist (central differences
-of fcl's distance) and n its translation part, errors within ``common`` (c_h, c_v; shared
-by the three drones) and ``own`` (h, v; each drone's about their mean) close the gap by at
-most
+of fcl's distance between the two closest bodies) and n its translation part, errors
+within ``common`` (c_h, c_v; shared by the three drones) and ``own`` (h, v; each drone's
+about their mean) close the gap by at most
 
     |n_xy| c_h + |n_z| c_v + sum_k (||(g G)_k[:2]|| h + |(g G)_k[2]| v)
 
@@ -40,13 +40,16 @@ from flycrane.planning.validity import ValidityChecker
 TWIST_STEP = 1e-4
 
 
-def twisted(q: NDArray[np.float64], twist: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Configuration q (9,) with its platform moved by a small twist (translation, rotation
-    vector; world axes), its alphas kept."""
-    moved = q.copy()
-    moved[:3] += twist[:3]
-    rotation = Rotation.from_rotvec(twist[3:]).as_matrix() @ matrix_from_tilt_torsion(q[3:6])
-    moved[3:6] = tilt_torsion_from_matrix(rotation)
+def twisted(q: NDArray[np.float64], twists: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Configurations q (N, 9) with their platforms moved by small twists (K, 6:
+    translation, rotation vector; world axes), their alphas kept: (N, K, 9)."""
+    moved = np.repeat(np.asarray(q, dtype=float)[:, None], len(twists), axis=1)
+    moved[..., :3] += twists[:, :3]
+    turns = Rotation.from_rotvec(twists[:, 3:]).as_matrix()  # (K, 3, 3)
+    rotations = turns @ matrix_from_tilt_torsion(q[:, 3:6])[:, None]  # (N, K, 3, 3)
+    moved[..., 3:6] = tilt_torsion_from_matrix(rotations.reshape(-1, 3, 3)).reshape(
+        len(q), len(twists), 3
+    )
     return moved
 
 
@@ -64,20 +67,20 @@ class RobustClearance:
     ) -> None:
         self.real, self.common, self.own = real, common, own
         self.near, self.resolution = near, resolution
+        self._reach: ValidityChecker | None = None  #: the obstacles grown by ``near``
 
     def gaps(self, q: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(gap [m] to the nearest real obstacle or the ground, bound [m] on how much of it
         the drones' errors can close; 0 farther than ``near``), per configuration (N,)."""
         q = as_configurations(q)
-        collision = self.real.collision
-        gap = np.array([collision.clearance(row) for row in q])
+        steps = np.vstack([np.eye(6), -np.eye(6)]) * TWIST_STEP
+        gap, around = self.real.collision.pair_clearances(q, twisted(q, steps))
         bound = np.zeros(len(q))
         rows = np.flatnonzero(gap <= self.near)
         if not len(rows):
             return gap, bound
-        steps = np.vstack([np.eye(6), -np.eye(6)]) * TWIST_STEP
-        gradient = np.array([[collision.clearance(twisted(q[n], s)) for s in steps] for n in rows])
-        gradient = (gradient[:, :6] - gradient[:, 6:]) / (2 * TWIST_STEP)  # (R, 6)
+        around = around[rows]  # (R, 12)
+        gradient = (around[:, :6] - around[:, 6:]) / (2 * TWIST_STEP)  # (R, 6)
         g = pose_sensitivity(forward_kinematics(self.real.system, q[rows]))  # (R, 6, 9)
         per_drone = np.einsum("ra,rab->rb", gradient, g).reshape(-1, 3, 3)
         (c_h, c_v), (h, v) = self.common, self.own
@@ -89,7 +92,16 @@ class RobustClearance:
     def margin(self, path: ArrayLike, space: ConfigurationSpace) -> float:
         """The path's robust margin [m]: its least gap less the bound there, over its
         samples ``resolution`` apart within ``near`` of an obstacle (+inf if none is)."""
-        samples = space.discretize_path(as_configurations(path), self.resolution)
-        gap, bound = self.gaps(samples)
+        return self.samples_margin(space.discretize_path(as_configurations(path), self.resolution))
+
+    def samples_margin(self, q: ArrayLike) -> float:
+        """The least gap less the bound over configurations (N, 9) within ``near`` of an
+        obstacle (+inf if none is). Those safe with the obstacles grown by ``near`` (the
+        compiled checker, cheap) are not measured."""
+        q = as_configurations(q)
+        if self._reach is None:
+            self._reach = self.real.with_clearance(self.near)
+        q = q[~self._reach.is_safe(q)]
+        gap, bound = self.gaps(q)
         close = gap <= self.near
         return float((gap[close] - bound[close]).min()) if close.any() else float("inf")

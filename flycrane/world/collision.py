@@ -36,6 +36,13 @@ from flycrane.world.bodies import (
     platform_body,
     rotations_from_z,
 )
+from flycrane.world.boxes import (
+    BoxSet,
+    segment_near_boxes,
+    sphere_touches_boxes,
+    static_boxes,
+    world_boxes,
+)
 from flycrane.world.scene import SceneSpec
 
 GROUND = "ground"
@@ -82,77 +89,6 @@ class _Pose:
     cable_rotation: NDArray  # (N, 6, 3, 3) takes z onto the cable axis (fcl capsules)
 
 
-@dataclass(frozen=True)
-class BoxSet:
-    """Oriented boxes of several bodies in their parent frame, stacked for vectorized use."""
-
-    centers: NDArray[np.float64]  #: (B, 3)
-    axes: NDArray[np.float64]  #: (B, 3, 3)
-    halves: NDArray[np.float64]  #: (B, 3)
-
-    @classmethod
-    def of(cls, bodies: list[Body]) -> BoxSet:
-        if not bodies:
-            return cls(np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3)))
-        return cls(
-            np.stack([b.box_center for b in bodies]),
-            np.stack([b.rotation for b in bodies]),
-            np.stack([b.half_size for b in bodies]),
-        )
-
-
-def world_boxes(
-    boxes: BoxSet, position: NDArray[np.float64], rotation: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """World-aligned boxes (centres, half sizes) of platform-fixed bodies, each (N, B, 3).
-
-    A box with axes ``R`` and half sizes ``h`` spans ``|R| h`` along the world axes.
-    """
-    centers, axes, halves = boxes.centers, boxes.axes, boxes.halves
-    world_centers = position[:, None, :] + np.einsum("nab,kb->nka", rotation, centers)
-    world_axes = np.einsum("nab,kbc->nkac", rotation, axes)
-    return world_centers, np.einsum("nkac,kc->nka", np.abs(world_axes), halves)
-
-
-def static_boxes(boxes: BoxSet) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """World-aligned boxes (centres, half sizes) of world-fixed bodies, each (B, 3)."""
-    return boxes.centers, np.einsum("kac,kc->ka", np.abs(boxes.axes), boxes.halves)
-
-
-def sphere_touches_boxes(
-    centers: NDArray[np.float64], radius: float, boxes: BoxSet
-) -> NDArray[np.bool_]:
-    """Whether spheres (..., 3) touch oriented boxes (O,), exactly: (..., O).
-
-    The sphere centre, in each box's frame, is clamped to the box; the sphere touches it
-    when that closest point is within the radius.
-    """
-    local = np.einsum("oba,...ob->...oa", boxes.axes, centers[..., None, :] - boxes.centers)
-    outside = local - np.clip(local, -boxes.halves, boxes.halves)
-    return np.einsum("...a,...a->...", outside, outside) <= radius**2
-
-
-def segment_near_boxes(
-    start: NDArray[np.float64], end: NDArray[np.float64], margin: float, boxes: BoxSet
-) -> NDArray[np.bool_]:
-    """Whether segments (..., 3) cross oriented boxes grown by ``margin`` on every side.
-
-    Slab test in each box's frame. A capsule of radius ``margin`` can only touch a box if
-    its axis crosses the box grown by the margin, so False is exact and True needs a narrow
-    check (near the grown box's edges and corners the capsule may still miss).
-    """
-    p0 = np.einsum("oba,...ob->...oa", boxes.axes, start[..., None, :] - boxes.centers)
-    p1 = np.einsum("oba,...ob->...oa", boxes.axes, end[..., None, :] - boxes.centers)
-    d = p1 - p0
-    half = boxes.halves + margin
-    flat = np.abs(d) < 1e-12
-    safe = np.where(flat, 1.0, d)
-    t1, t2 = (-half - p0) / safe, (half - p0) / safe
-    low = np.where(flat, np.where(np.abs(p0) <= half, -np.inf, np.inf), np.minimum(t1, t2))
-    high = np.where(flat, np.where(np.abs(p0) <= half, np.inf, -np.inf), np.maximum(t1, t2))
-    return np.maximum(low.max(axis=-1), 0.0) <= np.minimum(high.min(axis=-1), 1.0)
-
-
 class CollisionChecker:
     """Collision checks of configurations in one scene, for one system.
 
@@ -171,6 +107,7 @@ class CollisionChecker:
         ]
         self._obstacle_boxes = BoxSet.of(self.obstacles)
         self._obstacle_aabb = static_boxes(self._obstacle_boxes)
+        self._margins = np.array([o.margin for o in self.obstacles])
         self._fixed_boxes = BoxSet.of(self.platform_fixed)
         self._payload_boxes = BoxSet.of(self.platform_fixed[1:])
         self._request = fcl.CollisionRequest()
@@ -425,18 +362,76 @@ class CollisionChecker:
         crashes in python-fcl 0.7).
         """
         pose = self._pose(as_configurations(q)[:1])
+        return self._closest(pose, self._robot_boxes(pose), 0)[0]
+
+    def pair_clearances(self, q: ArrayLike, around: ArrayLike) -> tuple[NDArray, NDArray]:
+        """The clearances of configurations (N, 9) (:meth:`clearance`), and the distance [m]
+        of each one's two closest bodies at its configurations ``around`` (N, K, 9): how the
+        gap to the closest obstacle changes near it, at one fcl call each. (N,), (N, K)."""
+        q = as_configurations(q)
+        around = np.asarray(around, dtype=float)
+        count = around.shape[1]
+        pose, moved = self._pose(q), self._pose(around.reshape(-1, 9))
+        boxes, (moved_c, moved_h, kinds) = self._robot_boxes(pose), self._robot_boxes(moved)
         request = fcl.DistanceRequest(enable_signed_distance=True)
-        centers, halves, kinds = self._robot_boxes(pose)
-        lowest = centers[0, :, 2] - halves[0, :, 2]
+        gaps, near = np.empty(len(q)), np.full((len(q), count), np.inf)
+        for n in range(len(q)):
+            best, (kind, index, o) = self._closest(pose, boxes, n)
+            gaps[n] = best.distance
+            rows = range(n * count, (n + 1) * count)
+            if not np.isfinite(best.distance):  # no ground, no obstacle
+                continue
+            if o < 0:  # the ground
+                body = kinds.index((kind, index))
+                near[n] = moved_c[rows, body, 2] - moved_h[rows, body, 2] - self._ground_z
+                continue
+            obstacle = self.obstacles[o]
+            near[n] = [
+                fcl.distance(
+                    self._robot_object(kind, index, moved, row),
+                    obstacle.obstacle,
+                    request,
+                    fcl.DistanceResult(),
+                )
+                - obstacle.margin
+                for row in rows
+            ]
+        return gaps, near
+
+    def _closest(
+        self, pose: _Pose, boxes: tuple[NDArray, NDArray, list[tuple[str, int]]], row: int
+    ) -> tuple[Clearance, tuple[str, int, int]]:
+        """:meth:`closest` of a pose's row (``boxes``: its :meth:`_robot_boxes`), and its
+        pair: the robot body's (kind, index) and the obstacle's index, -1 for the ground."""
+        request = fcl.DistanceRequest(enable_signed_distance=True)
+        all_centers, all_halves, kinds = boxes
+        centers, halves = all_centers[row], all_halves[row]
+        lowest = centers[:, 2] - halves[:, 2]
         best = Clearance(np.inf, "", "")
+        pair = ("", -1, -1)
         if self.scene.ground:
             body = int(np.argmin(lowest))
             best = Clearance(float(lowest[body] - self._ground_z), self._name(*kinds[body]), GROUND)
-        for kind, index in kinds:
-            mine = self._robot_object(kind, index, pose, 0)
-            for obstacle in self.obstacles:
-                gap = fcl.distance(mine, obstacle.obstacle, request, fcl.DistanceResult())
-                gap -= obstacle.margin  # a mesh keeps the clearance from its faces
-                if gap < best.distance:
-                    best = Clearance(float(gap), self._name(kind, index), obstacle.name)
-        return best
+            pair = (*kinds[body], -1)
+        if not self.obstacles:
+            return best, pair
+        # Pairs by the distance of their world boxes, a lower bound of their own (none where
+        # the boxes overlap: the bodies may be in contact): none farther than the closest
+        # found can be closer.
+        obstacle_c, obstacle_h = self._obstacle_aabb
+        apart = np.abs(centers[:, None] - obstacle_c) - halves[:, None] - obstacle_h
+        lower = np.linalg.norm(np.maximum(apart, 0.0), axis=-1) - self._margins  # (B, O)
+        lower[(apart <= 0.0).all(axis=-1)] = -np.inf
+        first = len(kinds) * len(self.obstacles)  # of equally close pairs, the first listed
+        for flat in np.argsort(lower, axis=None, kind="stable"):
+            b, o = divmod(int(flat), len(self.obstacles))
+            if lower[b, o] > best.distance:
+                break
+            (kind, index), obstacle = kinds[b], self.obstacles[o]
+            mine = self._robot_object(kind, index, pose, row)
+            gap = fcl.distance(mine, obstacle.obstacle, request, fcl.DistanceResult())
+            gap -= obstacle.margin  # a mesh keeps the clearance from its faces
+            if gap < best.distance or (gap == best.distance and flat < first and pair[2] >= 0):
+                best = Clearance(float(gap), self._name(kind, index), obstacle.name)
+                pair, first = (kind, index, o), flat
+        return best, pair

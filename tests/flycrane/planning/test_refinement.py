@@ -146,11 +146,10 @@ def test_options_are_checked():
         PlannerOptions(improve_time=-1.0)
 
 
-def test_a_path_more_exposed_to_the_drones_errors_is_refused(case, refined):
-    """Given the drones' errors, the refinement returns its path only where that path's
-    robust margin keeps the input's (or zero, the lower), else the input itself; on the
-    Puzzle (seed 2) the refined path passes the slab in a pose the errors turn further,
-    and is refused."""
+def test_the_robust_margin_is_kept_where_it_would_be_lost(case, refined):
+    """Given the drones' errors, the refined path keeps the input's robust margin (or
+    zero, the lower) and still lowers avgC; on the Puzzle (seed 2) the refinement without
+    them passes the slab in a pose the errors turn further, and loses it."""
     problem, path, seed = case
     common, own = (0.04, 0.04), (0.02, 0.02 * 2 / 3)  # the ``sitl`` model's
     robust = RobustClearance(problem.validity.with_clearance(0.0), common, own)
@@ -165,6 +164,9 @@ def test_a_path_more_exposed_to_the_drones_errors_is_refused(case, refined):
         robust=robust,
     )
     floor = min(robust.margin(path, problem.space), 0.0) - MARGIN_TOLERANCE
-    refused = robust.margin(refined, problem.space) < floor
-    np.testing.assert_array_equal(guarded, path if refused else refined)
-    assert refused or problem.scene.name != "puzzle"
+    assert robust.margin(guarded, problem.space) >= floor
+    cost = problem.validity.cost
+    before = path_metrics(path, problem.space, cost).avg_cost
+    assert path_metrics(guarded, problem.space, cost).avg_cost < 0.8 * before
+    if problem.scene.name == "puzzle":
+        assert robust.margin(refined, problem.space) < floor - 0.01
