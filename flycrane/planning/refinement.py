@@ -34,8 +34,9 @@ The robust margin, given the drones' errors (:class:`~flycrane.planning.robust_c
 RobustClearance`): a lower cost comes from leaning the drones out, and in some poses that
 turns the payload much more for the same drone errors, past an obstacle too
 (BENCHMARKS.md, "Anytime improvement"). So a change is also kept only if its new local
-paths keep the robust margin of those they replace (or zero, the lower), and the path
-returned keeps the input's, to :data:`MARGIN_TOLERANCE`: the input itself otherwise.
+paths keep the robust margin of those they replace (or zero, the lower): the path's
+robust margin stays at least the input's (or zero), to :data:`MARGIN_TOLERANCE`, by
+which the finer levels' local paths, sampled elsewhere, may read it lower.
 
 Deterministic for a seed (the shortcuts' draws) when it ends by converging, the usual
 case; its termination condition cuts it where it is. Returns the path of least avgC it
@@ -45,7 +46,6 @@ has seen: the input itself if it found none lower.
 from __future__ import annotations
 
 import itertools
-import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
@@ -64,8 +64,6 @@ from flycrane.planning.result import TerminationCondition
 from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.planning.state_space import ConfigurationSpace
 
-logger = logging.getLogger(__name__)
-
 #: Columns of a stretch's statistics: sums over its samples (its first configuration, the
 #: stretch before's last, excluded), then its largest cost and least margins [N].
 TOTAL, COUNT, INTEGRAL, HIGHEST, SLACK, HEADROOM, THRUST = range(7)
@@ -73,7 +71,8 @@ SUMS, MARGINS = [TOTAL, COUNT, INTEGRAL], [SLACK, HEADROOM, THRUST]
 #: Least gain in avgC, relative, that counts as a change: rounding-level moves end a level.
 GAIN_TOLERANCE = 1e-9
 #: How much lower [m] the refined path's robust margin may read than the input's: each
-#: change keeps its own, but the two are minima over samples at different places.
+#: change keeps the margin of what it replaces, but a finer level samples its local paths
+#: at other places.
 MARGIN_TOLERANCE = 0.005
 
 
@@ -416,10 +415,4 @@ def refine_path(
                 break
             unchanged = 0
     refinement.keep_best()
-    best = refinement.best
-    if robust is not None and best is not path:
-        floor = min(robust.margin(path, space), 0.0) - MARGIN_TOLERANCE
-        if (margin := robust.margin(best, space)) < floor:
-            logger.info("refined path refused: robust margin %.3f m below %.3f m", margin, floor)
-            return path
-    return best
+    return refinement.best
