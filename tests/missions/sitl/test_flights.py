@@ -18,6 +18,7 @@ timed on this host: a flight it released out of step is flown again once
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -128,7 +129,8 @@ def test_a_simulator_that_exits_is_reported_with_the_reason_its_console_gives(
     (tmp_path / "copter.parm").write_text("FRAME_CLASS 1\n")
     done = run_fly_sitl(rescue, tmp_path / "flight", env={"FLYCRANE_SITL_BINARY": str(panicking)})
     assert done.returncode == 2, done.stderr[-2000:]
-    assert "SITL instance 0 exited with 1" in done.stderr, done.stderr
+    # all three panic; whichever is seen first is reported
+    assert re.search(r"SITL instance [0-2] exited with 1", done.stderr), done.stderr
     assert "PANIC: Failed to load defaults" in done.stderr and "Traceback" not in done.stderr
 
 
