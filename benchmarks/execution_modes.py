@@ -7,16 +7,14 @@ faulted flights, and print how in step and how safe each was.
         --faults 1 --modes stream --out execution-faults
 
 Each (scene, seed) is planned once by ``flycrane plan`` (the default planner, or the options
-``--planner`` gives; the ``sitl`` position-error model), then flown by ``flycrane fly-sitl
---mode MODE`` (its own private network namespace, simulators stopped by PID; ``--lead``
-passed on). With
-``--faults K``, each flight gets one fault drawn from a generator seeded by the task's
-seed: a kind among ``gps``, ``link``, ``mode`` and ``motor`` (0.8 of one motor's thrust),
-a drone, and a plan time between 20 % and 70 % of the plan. Figures are the flight
-report's (true positions from SIM_STATE, estimates from the autopilots, one common clock);
-BENCHMARKS.md ("Execution in step") records the runs. Results are kept in ``--out``: a
-rerun flies only what is missing.
-"""
+``--planner`` and ``--mission`` give; the ``sitl`` position-error model), then flown by
+``flycrane fly-sitl --mode MODE`` (its own private network namespace, simulators stopped by
+PID; ``--lead`` passed on). With ``--faults K``, each flight gets one fault drawn from a
+generator seeded by the task's seed: a kind among ``gps``, ``link``, ``mode`` and ``motor``
+(0.8 of one motor's thrust), a drone, and a plan time between 20 % and 70 % of the plan.
+Figures are the flight report's (true positions from SIM_STATE, estimates from the
+autopilots, one common clock); BENCHMARKS.md ("Execution in step") records the runs. Results
+are kept in ``--out``: a rerun flies only what is missing. """
 
 from __future__ import annotations
 
@@ -31,14 +29,14 @@ from sitl_seeds import flycrane, seeds  # the seeds' syntax and the CLI runner, 
 FAULT_KINDS = ("gps", "link", "mode", "motor")
 
 
-def plan(scene: str, seed: int, out: Path, planner: dict) -> dict:
+def plan(scene: str, seed: int, out: Path, planner: dict, mission: dict) -> dict:
     """The task's summary, planned once into ``out`` (``planner``: options beside the
-    seed and the budget)."""
+    seed and the budget; ``mission``: beside the ``sitl`` model)."""
     summary_file = out / "summary.json"
     if not summary_file.exists():
         out.mkdir(parents=True, exist_ok=True)
         task = {"scene": scene, "planner": {**planner, "seed": seed, "time_budget": 120},
-                "mission": {"position_error": "sitl"}}  # fmt: skip
+                "mission": {**mission, "position_error": "sitl"}}  # fmt: skip
         (out / "task.in.json").write_text(json.dumps(task))
         flycrane("plan", str(out / "task.in.json"), "--out", str(out))
     return json.loads(summary_file.read_text())
@@ -158,12 +156,14 @@ def main() -> None:
                         help="fly-sitl's --lead (default: the mode's)")  # fmt: skip
     parser.add_argument("--planner", type=json.loads, default={},
                         help='planner options as JSON, e.g. \'{"improve_time": 5}\'')  # fmt: skip
+    parser.add_argument("--mission", type=json.loads, default={},
+                        help='mission options as JSON: \'{"robust_clearance": true}\'')  # fmt: skip
     args = parser.parse_args()
     results = []
     for scene in args.scenes:
         for seed in args.seeds:
             task_dir = args.out / f"{scene}-{seed}" / "plan"
-            summary = plan(scene, seed, task_dir, args.planner)
+            summary = plan(scene, seed, task_dir, args.planner, args.mission)
             if summary["status"] != "done":
                 print(f"{scene} {seed}: no mission: {summary['reason'][:160]}", flush=True)
                 continue

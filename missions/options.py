@@ -100,6 +100,13 @@ class MissionOptions(BaseModel):
         description="how far each drone may be from where it is told: a preset or bounds; "
         "the obstacle clearance follows from it (missions.position_error)",
     )
+    robust_clearance: bool = Field(
+        False,
+        strict=True,
+        description="plan again with a larger obstacle clearance while the path's robust "
+        "margin (its least gap less what the position error's drone errors can close there, "
+        "flycrane.planning.robust_clearance) is below zero",
+    )
     vertical_leg_speed: float = Field(
         0.1, ge=0.01, le=0.5, strict=True, description="[m/s] of lift-off and set-down legs"
     )

@@ -113,10 +113,12 @@ def build(
     resolved: ResolvedTask,
     path: NDArray[np.float64],
     limits: PhaseLimits | None = None,
+    robust_margin: float | None = None,
 ) -> BuiltMissions:
     """The missions of the planned ``path`` (M, 9). ``limits`` are checked between the
     phases and before every safety check of the long ones (the flight plan, the timing
-    tolerance), so that a cancel or the time budget reaches the work wherever it is.
+    tolerance), so that a cancel or the time budget reaches the work wherever it is;
+    ``robust_margin``, the path's where measured, goes to the summary.
 
     Raises
     ------
@@ -172,6 +174,7 @@ def build(
         position_error=resolved.position_error,
         lift_off=resolved.lift_off,
         set_down=flight.set_down,
+        robust_margin=robust_margin,
     )
     tracks = Tracks(
         time=flight.time,

@@ -104,8 +104,12 @@ class MissionSummary:
     position_error: PositionErrorModel
     lift_off: VerticalLeg | None
     set_down: SetDown | None
+    #: [m] the path's least gap less what the drones' errors can close there, where the
+    #: task asked for it (``mission.robust_clearance``)
+    robust_margin: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
+        robust = {} if self.robust_margin is None else {"robust_margin": self.robust_margin}
         return {
             "waypoints": self.waypoints,
             "duration": self.duration,
@@ -120,6 +124,7 @@ class MissionSummary:
             "position_error": self.position_error.model_dump(),
             "lift_off": self.lift_off.as_dict() if self.lift_off else None,
             "set_down": self.set_down.as_dict() if self.set_down else None,
+            **robust,
         }
 
     @classmethod
@@ -138,6 +143,7 @@ class MissionSummary:
             position_error=PositionErrorModel.model_validate(data["position_error"]),
             lift_off=VerticalLeg.from_dict(data["lift_off"]) if data["lift_off"] else None,
             set_down=SetDown.from_dict(data["set_down"]) if data["set_down"] else None,
+            robust_margin=data.get("robust_margin"),
         )
 
 

@@ -6,7 +6,9 @@ planning (:func:`flycrane.planning.planners.plan`), mission building
 TaskDirectory`, the MCAP log and the profile plot). Not finding a path, or a path that
 cannot be flown safely, is an outcome (status "failed" with the reason), not an exception:
 every phase ends in the one failure exit, which writes ``summary.json``. A path whose
-missions fail their check is planned again with another seed while the budget lasts.
+missions fail their check is planned again with another seed while the budget lasts; with
+``mission.robust_clearance``, a path the drones' errors could bring closer to an obstacle
+than it keeps is planned again with a larger clearance.
 """
 
 from __future__ import annotations
@@ -19,8 +21,10 @@ from pathlib import Path
 from typing import Any, Literal
 
 from flycrane.analysis.profiles import path_profile, plot_path_profile
+from flycrane.errors import InputError
 from flycrane.planning.planners import PlanningOutcome, plan
 from flycrane.planning.result import PlanningProgress
+from flycrane.planning.validity import InvalidConfigurationError
 from flycrane.quantities import MAX_SEED
 from missions.autopilots.ardupilot import team_parameters
 from missions.export.formats import mission_files
@@ -66,6 +70,9 @@ class _Failed(Exception):
 
 #: Most plans a task tries when the mission made of a path fails its check.
 MAX_PLANS = 4
+#: Most plans with a raised clearance (``mission.robust_clearance``), and how much more
+#: than the robust margin's shortfall [m] each raises it.
+MAX_ROBUST_PLANS, ROBUST_STEP = 3, 0.01
 
 
 def run_task(
@@ -81,14 +88,17 @@ def run_task(
     A path whose missions fail their check (:class:`~missions.task.build.UnflyablePath`)
     is planned again with the next seed, up to :data:`MAX_PLANS` plans, while the planning
     budget (``planner.time_budget``, shared by the plans) lasts; the outcome lists what was
-    tried (``attempts``) and ``task.json`` the seed that made the missions."""
+    tried (``attempts``) and ``task.json`` the seed that made the missions. With
+    ``mission.robust_clearance``, a path whose robust margin is below zero is planned
+    again keeping that much more clearance, up to :data:`MAX_ROBUST_PLANS` times while the
+    budget lasts; the last path is built, and the summary gives its margin."""
     directory = TaskDirectory(out_dir).create()
     resolved = resolved or resolve_task(task, base_dir)
     report = progress or (lambda *_: None)
     planning_ends = time.monotonic() + task.planner.time_budget
     limits: PhaseLimits | None = None  # the making's budget, from the first path on
     attempts: list[dict[str, Any]] = []
-    seed = task.planner.seed
+    seed, robust_margin, raises = task.planner.seed, None, 0
     while True:
         report("planning", None)
         options = task.planner.model_copy(
@@ -117,9 +127,21 @@ def run_task(
             if not result.status.solved:
                 cancelled = result.status.value == "cancelled"
                 reason = result.reason or result.status.value
-                if attempts:
-                    reason = f"{reason} (after {len(attempts)} unflyable path(s))"
+                if len(attempts) > raises:
+                    reason = f"{reason} (after {len(attempts) - raises} unflyable path(s))"
                 raise _Failed("cancelled" if cancelled else "failed", reason)
+            if task.mission.robust_clearance:
+                robust_margin = resolved.robust.margin(planned.path, resolved.problem.space)
+                again = None
+                if robust_margin < 0 and raises < MAX_ROBUST_PLANS:
+                    again = _raised(task, base_dir, resolved, robust_margin)
+                if again is not None and time.monotonic() < planning_ends:
+                    resolved, clearance = again
+                    attempts.append({"seed": seed, "clearance": clearance, "reason": (
+                        f"robust margin {robust_margin:.3f} m: planned again keeping "
+                        f"{clearance:.3f} m")})  # fmt: skip
+                    raises += 1
+                    continue
             report("generating", None)
             outcome = TaskOutcome(**{**outcome.__dict__, "metrics": planned.metrics})
             used = resolved.self_contained()
@@ -128,14 +150,14 @@ def run_task(
             directory.write_path(planned.path, result.path)
             limits = limits or PhaseLimits.starting_now(should_stop, task.planner.time_budget)
             try:
-                built = build(resolved, planned.path, limits)
+                built = build(resolved, planned.path, limits, robust_margin)
             except UnflyablePath as unflyable:
                 attempts.append({"seed": seed, "reason": str(unflyable)})
-                if len(attempts) < MAX_PLANS and time.monotonic() < planning_ends:
+                if len(attempts) - raises < MAX_PLANS and time.monotonic() < planning_ends:
                     logger.info("seed %d: %s; planning again", seed, unflyable)
                     seed = (seed + 1) % (MAX_SEED + 1)
                     continue
-                tried = ", ".join(str(a["seed"]) for a in attempts)
+                tried = ", ".join(str(a["seed"]) for a in attempts if "clearance" not in a)
                 reason = f"mission generation: {unflyable} (seeds tried: {tried})"
                 raise _Failed("failed", reason) from None
             _write(directory, resolved, planned, built, limits)
@@ -154,6 +176,21 @@ def run_task(
     )
     logger.info("task done in %s: %d waypoints", directory.path, built.summary.waypoints)
     return directory.write_summary(done)
+
+
+def _raised(
+    task: TaskSpec, base_dir: Path | None, resolved: ResolvedTask, margin: float
+) -> tuple[ResolvedTask, float] | None:
+    """The task resolved keeping :data:`ROBUST_STEP` more clearance than a path whose
+    robust ``margin`` [m] fell short, and that clearance; None where the ends do not keep
+    it."""
+    kept = resolved.problem.scene.collision.obstacle_clearance
+    clearance = round(kept - margin + ROBUST_STEP, 3)
+    try:
+        return resolve_task(task, base_dir, clearance), clearance
+    except (InputError, InvalidConfigurationError) as error:
+        logger.info("robust margin %.3f m; %.3f m refused: %s", margin, clearance, error)
+        return None
 
 
 def _ending(failure: Exception) -> tuple[Status, str]:

@@ -110,8 +110,11 @@ def task_specs(
     return system, scene, scene_dir
 
 
-def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
-    """Build the problem and check start and goal (every error names its field).
+def resolve_task(
+    task: TaskSpec, base_dir: Path | None = None, clearance: float = 0.0
+) -> ResolvedTask:
+    """Build the problem and check start and goal (every error names its field); the plan
+    keeps at least ``clearance`` [m] from the obstacles.
 
     Raises
     ------
@@ -125,7 +128,7 @@ def resolve_task(task: TaskSpec, base_dir: Path | None = None) -> ResolvedTask:
     # The plan keeps the clearance the position-error model asks for (or the scene's, if
     # larger): docs/missions.md "Clearance".
     model = position_error_model(task.mission.position_error)
-    clearance = max(scene.collision.obstacle_clearance, model.obstacle_clearance)
+    clearance = max(scene.collision.obstacle_clearance, model.obstacle_clearance, clearance)
     if clearance != scene.collision.obstacle_clearance:
         try:
             scene = scene.model_copy(
