@@ -5,10 +5,10 @@ The drones' errors move the platform through the direct kinematics
 (:func:`flycrane.model.pose_error.pose_sensitivity`, G), and on near-vertical cables a few
 centimetres of the drones' spread turn a long payload by far more in some poses than in
 others: one fixed clearance is too small in some poses and wasted in others. With g the
-gradient of the gap to the nearest obstacle in the platform's twist (central differences
-of fcl's distance between the two closest bodies) and n its translation part, errors
-within ``common`` (c_h, c_v; shared by the three drones) and ``own`` (h, v; each drone's
-about their mean) close the gap by at most
+gradient of the gap to the nearest obstacle in the platform's twist (from fcl's nearest
+points, :meth:`~flycrane.world.collision.CollisionChecker.gap_gradients`) and n its
+translation part, errors within ``common`` (c_h, c_v; shared by the three drones) and
+``own`` (h, v; each drone's about their mean) close the gap by at most
 
     |n_xy| c_h + |n_z| c_v + sum_k (||(g G)_k[:2]|| h + |(g G)_k[2]| v)
 
@@ -24,33 +24,11 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
-from flycrane.model.kinematics import (
-    as_configurations,
-    forward_kinematics,
-    matrix_from_tilt_torsion,
-    tilt_torsion_from_matrix,
-)
+from flycrane.model.kinematics import as_configurations, forward_kinematics
 from flycrane.model.pose_error import pose_sensitivity
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.validity import ValidityChecker
-
-#: Finite-difference step of the gap's gradient, in the twist (m, rad).
-TWIST_STEP = 1e-4
-
-
-def twisted(q: NDArray[np.float64], twists: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Configurations q (N, 9) with their platforms moved by small twists (K, 6:
-    translation, rotation vector; world axes), their alphas kept: (N, K, 9)."""
-    moved = np.repeat(np.asarray(q, dtype=float)[:, None], len(twists), axis=1)
-    moved[..., :3] += twists[:, :3]
-    turns = Rotation.from_rotvec(twists[:, 3:]).as_matrix()  # (K, 3, 3)
-    rotations = turns @ matrix_from_tilt_torsion(q[:, 3:6])[:, None]  # (N, K, 3, 3)
-    moved[..., 3:6] = tilt_torsion_from_matrix(rotations.reshape(-1, 3, 3)).reshape(
-        len(q), len(twists), 3
-    )
-    return moved
 
 
 class RobustClearance:
@@ -73,14 +51,12 @@ class RobustClearance:
         """(gap [m] to the nearest real obstacle or the ground, bound [m] on how much of it
         the drones' errors can close; 0 farther than ``near``), per configuration (N,)."""
         q = as_configurations(q)
-        steps = np.vstack([np.eye(6), -np.eye(6)]) * TWIST_STEP
-        gap, around = self.real.collision.pair_clearances(q, twisted(q, steps))
+        gap, gradient = self.real.collision.gap_gradients(q)
         bound = np.zeros(len(q))
         rows = np.flatnonzero(gap <= self.near)
         if not len(rows):
             return gap, bound
-        around = around[rows]  # (R, 12)
-        gradient = (around[:, :6] - around[:, 6:]) / (2 * TWIST_STEP)  # (R, 6)
+        gradient = gradient[rows]  # (R, 6)
         g = pose_sensitivity(forward_kinematics(self.real.system, q[rows]))  # (R, 6, 9)
         per_drone = np.einsum("ra,rab->rb", gradient, g).reshape(-1, 3, 3)
         (c_h, c_v), (h, v) = self.common, self.own

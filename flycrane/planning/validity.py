@@ -35,7 +35,8 @@ from flycrane.model.statics import evaluate_statics
 from flycrane.model.statics_kernel import configuration_cost
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.validity_kernel import CompiledValidity
-from flycrane.world.collision import CollisionChecker, Contact
+from flycrane.world.collision import CollisionChecker
+from flycrane.world.contact import Contact
 from flycrane.world.scene import SceneSpec
 
 #: Default motion-check step [state-space distance] (module docstring).

@@ -22,6 +22,7 @@ from pathlib import Path
 import fcl
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
 
 from flycrane.model.cable_system import CABLE_DRONE, CableSystem
 from flycrane.model.kinematics import (
@@ -31,43 +32,20 @@ from flycrane.model.kinematics import (
 )
 from flycrane.world.bodies import (
     Body,
+    box_corners,
     obstacle_bodies,
     payload_bodies,
     platform_body,
     rotations_from_z,
 )
+from flycrane.world.contact import GROUND, Clearance, Contact
 from flycrane.world.scene import SceneSpec
 
-GROUND = "ground"
-
-
-@dataclass(frozen=True)
-class Contact:
-    """One collision of a configuration: which robot body touches what, and how deep.
-
-    ``depth`` is the penetration depth [m] where fcl reports one, or the shortfall of a
-    separation (min distance - actual distance) for the closed-form self-checks.
-    """
-
-    body: str
-    other: str
-    depth: float
-
-    def __str__(self) -> str:
-        return f"{self.body} hits {self.other} (by {self.depth:.3g} m)"
-
-
-@dataclass(frozen=True)
-class Clearance:
-    """How far one configuration is from touching: the closest robot body, the obstacle
-    (or ``"ground"``) it is closest to, and their distance [m]."""
-
-    distance: float
-    body: str
-    other: str
-
-    def __str__(self) -> str:
-        return f"{self.body} {self.distance:.3f} m from {self.other}"
+#: Step of :meth:`CollisionChecker.gap_gradients`' central differences (m, rad), and its
+#: twelve twists: each axis of translation and rotation, both ways.
+TWIST_STEP = 1e-4
+_TWISTS = np.vstack([np.eye(6), -np.eye(6)]) * TWIST_STEP
+_TWIST_SHIFTS, _TWIST_TURNS = _TWISTS[:, :3], Rotation.from_rotvec(_TWISTS[:, 3:]).as_matrix()
 
 
 @dataclass
@@ -428,33 +406,51 @@ class CollisionChecker:
         pose = self._pose(as_configurations(q)[:1])
         return self._closest(pose, self._robot_boxes(pose), 0)[0]
 
-    def pair_clearances(self, q: ArrayLike, around: ArrayLike) -> tuple[NDArray, NDArray]:
-        """The clearances of configurations (N, 9) (:meth:`clearance`), and the distance [m]
-        of each one's two closest bodies at its configurations ``around`` (N, K, 9): how the
-        gap to the closest obstacle changes near it, at one fcl call each. (N,), (N, K)."""
+    def gap_gradients(self, q: ArrayLike) -> tuple[NDArray, NDArray]:
+        """The clearances of configurations (N, 9) (:meth:`clearance`), and each one's
+        gradient in a twist of the platform (translation, rotation vector; world axes; the
+        alphas kept, so every robot body moves with the platform): central differences of
+        fcl's distance of the closest pair, the robot body moved by the twist; at the
+        ground, its lowest point's height. (N,), (N, 6); zeros where bodies touch.
+        (fcl's nearest points would spare the calls, but against meshes python-fcl 0.7
+        does not give them in the world frame.)"""
         q = as_configurations(q)
-        around = np.asarray(around, dtype=float)
-        count = around.shape[1]
-        pose, moved = self._pose(q), self._pose(around.reshape(-1, 9))
-        boxes, (moved_c, moved_h, kinds) = self._robot_boxes(pose), self._robot_boxes(moved)
+        pose = self._pose(q)
+        boxes = self._robot_boxes(pose)
         request = fcl.DistanceRequest(enable_signed_distance=True)
-        gaps, near = np.empty(len(q)), np.full((len(q), count), np.inf)
+        gaps, gradients = np.empty(len(q)), np.zeros((len(q), 6))
         for n in range(len(q)):
             best, (kind, index, o) = self._closest(pose, boxes, n)
             gaps[n] = best.distance
-            rows = range(n * count, (n + 1) * count)
-            if not np.isfinite(best.distance):  # no ground, no obstacle
+            if not best.distance > 0.0 or not np.isfinite(best.distance):
                 continue
-            if o < 0:  # the ground
-                body = kinds.index((kind, index))
-                near[n] = moved_c[rows, body, 2] - moved_h[rows, body, 2] - self._ground_z
+            if o < 0:  # the ground: the lowest point rises by e_z . (dp + dw x r)
+                r = self._lowest_point(kind, index, pose, n) - pose.position[n]
+                gradients[n] = np.concatenate([[0.0, 0.0, 1.0], np.cross(r, [0.0, 0.0, 1.0])])
                 continue
-            obstacle = self.obstacles[o]
-            for m, row in enumerate(rows):
-                mine = self._robot_object(kind, index, moved, row)
-                gap = fcl.distance(mine, obstacle.obstacle, request, fcl.DistanceResult())
-                near[n, m] = gap - obstacle.margin
-        return gaps, near
+            mine, obstacle = self._robot_object(kind, index, pose, n), self.obstacles[o].obstacle
+            rotation, origin, center = mine.getRotation(), mine.getTranslation(), pose.position[n]
+            moved = []
+            for shift, turn in zip(_TWIST_SHIFTS, _TWIST_TURNS, strict=True):
+                place = center + turn @ (origin - center) + shift
+                mine.setTransform(fcl.Transform(turn @ rotation, place))
+                moved.append(fcl.distance(mine, obstacle, request, fcl.DistanceResult()))
+            gradients[n] = (np.array(moved[:6]) - moved[6:]) / (2 * TWIST_STEP)
+        return gaps, gradients
+
+    def _lowest_point(self, kind: str, index: int, pose: _Pose, row: int) -> NDArray:
+        """The lowest point of a robot body (a drone's centre, a cable's lower end, a
+        platform-fixed box's lowest corner) at a pose's row."""
+        if kind == "drone":
+            return np.asarray(pose.drones[row, index])
+        if kind == "cable":
+            start = pose.cable_start[row, index]
+            end = start + pose.cable_axis[row, index] * self.system.cable_lengths[index]
+            return np.asarray(start if start[2] < end[2] else end)
+        corners = (
+            pose.position[row] + box_corners(self.platform_fixed[index]) @ pose.rotation[row].T
+        )
+        return np.asarray(corners[np.argmin(corners[:, 2])])
 
     def _closest(
         self, pose: _Pose, boxes: tuple[NDArray, NDArray, list[tuple[str, int]]], row: int
