@@ -43,7 +43,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     out = Path(args.out)
     print(f"status: {outcome.status}" + (f" ({outcome.reason})" if outcome.reason else ""))
     for attempt in outcome.attempts:
-        print(f"  seed {attempt['seed']}: its missions failed their check ({attempt['reason']})")
+        seed, reason = attempt["seed"], attempt["reason"]
+        if "clearance" in attempt:  # mission.robust_clearance
+            print(f"  seed {seed}: {reason}")
+        else:
+            print(f"  seed {seed}: its missions failed their check ({reason})")
     stats = outcome.planner_statistics
     print(
         f"planner: {outcome.planner_status} in {stats.get('time', 0):.2f} s, "
@@ -62,6 +66,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
             f"tolerates {tolerance.start_offset:.2f} s start offset "
             f"({tolerance.start_offset_case}) and {100 * tolerance.speed_mismatch:.1f} % "
             f"speed mismatch ({tolerance.speed_mismatch_case})"
+        )
+        robust = mission.robust_margin
+        print(
+            f"  clearance kept: {100 * mission.obstacle_clearance:.1f} cm"
+            + ("" if robust is None else f"; robust margin {100 * robust:.1f} cm")
         )
         for k in (1, 2, 3):
             waypoints, plan = mission_file(k, "waypoints"), mission_file(k, "plan")

@@ -242,28 +242,35 @@ def test_plan_command_prints_where_the_missions_are(tmp_path, capsys):
         assert (tmp_path / f"drone{j}.waypoints").exists()
     assert str(tmp_path / "mission.mcap") in out
     assert str(tmp_path / "summary.json") in out
+    assert "clearance kept: 8.0 cm\n" in out  # the default model's; no robust margin asked
 
 
-def test_a_robust_clearance_plans_again_until_the_errors_cannot_close_the_gap(tmp_path):
-    """``mission.robust_clearance`` on the Puzzle (``sitl`` model): its first path passes
-    the slab where the drones' errors could close more than the 7 cm it keeps, so it is
-    planned again keeping more; the path built keeps that clearance (fcl along it, at the
-    checker's resolution) and a robust margin of zero or more."""
+def test_a_robust_clearance_plans_again_until_the_errors_cannot_close_the_gap(tmp_path, capsys):
+    """``mission.robust_clearance`` on the Puzzle (``sitl`` model), through ``flycrane
+    plan``: its first path passes the slab where the drones' errors could close more than
+    the 7 cm it keeps, so it is planned again keeping more; the path built keeps that
+    clearance (fcl along it, at the checker's resolution) and a robust margin of zero or
+    more, and the command says so."""
     mission = {"position_error": "sitl", "robust_clearance": True}
-    task = TaskSpec.model_validate({"scene": "puzzle", "planner": {"seed": 1}, "mission": mission})
-    outcome = run_task(task, tmp_path)
-    assert outcome.status == "done", outcome.reason
-    raised = [a for a in outcome.attempts if "clearance" in a]
+    task_file, out = tmp_path / "task.in.json", tmp_path / "out"
+    spec = {"scene": "puzzle", "planner": {"seed": 1}, "mission": mission}
+    task_file.write_text(json.dumps(spec))
+    assert main(["plan", str(task_file), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    written = json.loads((out / "summary.json").read_text())
+    raised = [a for a in written["attempts"] if "clearance" in a]
     assert raised and "robust margin -0.0" in raised[0]["reason"]
-    summary = outcome.mission
-    assert summary.obstacle_clearance == pytest.approx(raised[-1]["clearance"])
-    assert summary.obstacle_clearance > PRESETS["sitl"].obstacle_clearance + 0.02
-    assert summary.robust_margin >= 0.0
-    written = json.loads((tmp_path / "task.json").read_text())
-    assert written["scene"]["collision"]["obstacle_clearance"] == summary.obstacle_clearance
+    summary = written["mission"]
+    assert summary["obstacle_clearance"] == pytest.approx(raised[-1]["clearance"])
+    assert summary["obstacle_clearance"] > PRESETS["sitl"].obstacle_clearance + 0.02
+    assert summary["robust_margin"] >= 0.0
+    assert f"planned again keeping {raised[-1]['clearance']:.3f} m" in printed
+    assert f"robust margin {100 * summary['robust_margin']:.1f} cm" in printed
+    task = json.loads((out / "task.json").read_text())
+    assert task["scene"]["collision"]["obstacle_clearance"] == summary["obstacle_clearance"]
     problem = PlanningProblem.from_scene(load_scene("puzzle")[0])
-    checker = problem.validity.with_clearance(summary.obstacle_clearance)
-    path = json.loads((tmp_path / "path.json").read_text())["configurations"]
+    checker = problem.validity.with_clearance(summary["obstacle_clearance"])
+    path = json.loads((out / "path.json").read_text())["configurations"]
     samples = problem.space.discretize_path(np.array(path), checker.resolution)
     assert checker.collision.collision_free(samples).all()
 
