@@ -9,6 +9,7 @@ task's run needs more than once is resolved here once.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -67,7 +68,7 @@ class ResolvedTask:
     lift_off: VerticalLeg | None = None
     set_down: VerticalLeg | None = None
 
-    @property
+    @cached_property
     def robust(self) -> RobustClearance:
         """The real obstacles' gaps against the bound of the position-error model's errors."""
         model = self.position_error
