@@ -23,7 +23,13 @@ def _progress(stage: str, report: PlanningProgress | None) -> None:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from missions.task.directory import MCAP_FILE, PROFILE_FILE, SUMMARY_FILE, mission_file
+    from missions.task.directory import (
+        MCAP_FILE,
+        PROFILE_FILE,
+        SUMMARY_FILE,
+        mission_file,
+        raised_clearance,
+    )
     from missions.task.pipeline import run_task
     from missions.task.resolve import resolve_task
     from missions.task.spec import TaskSpec, load_task
@@ -44,7 +50,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     print(f"status: {outcome.status}" + (f" ({outcome.reason})" if outcome.reason else ""))
     for attempt in outcome.attempts:
         seed, reason = attempt["seed"], attempt["reason"]
-        if "clearance" in attempt:  # mission.robust_clearance
+        if raised_clearance(attempt):
             print(f"  seed {seed}: {reason}")
         else:
             print(f"  seed {seed}: its missions failed their check ({reason})")

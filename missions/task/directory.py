@@ -147,6 +147,13 @@ class MissionSummary:
         )
 
 
+def raised_clearance(attempt: dict[str, Any]) -> bool:
+    """Whether an entry of :attr:`TaskOutcome.attempts` was a path planned again with more
+    clearance (``mission.robust_clearance``; it names the clearance), not one whose
+    missions failed their check."""
+    return "clearance" in attempt
+
+
 @dataclass(frozen=True)
 class TaskOutcome:
     """What a task's run produced (summary.json; the service stores it as the task's
@@ -159,7 +166,8 @@ class TaskOutcome:
     metrics: PathMetrics | None = None
     mission: MissionSummary | None = None
     artifacts: dict[str, str] = field(default_factory=dict)
-    #: paths planned before the last whose missions failed their check: seed and reason
+    #: paths planned before the last: seed and reason; whose missions failed their check,
+    #: or too close for the drones' errors (:func:`raised_clearance`)
     attempts: tuple[dict[str, Any], ...] = ()
 
     def as_dict(self) -> dict[str, Any]:

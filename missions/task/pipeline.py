@@ -47,6 +47,7 @@ from missions.task.directory import (
     TaskDirectory,
     TaskOutcome,
     mission_file,
+    raised_clearance,
 )
 from missions.task.resolve import ResolvedTask, resolve_task
 from missions.task.spec import TaskSpec
@@ -157,7 +158,7 @@ def run_task(
                     logger.info("seed %d: %s; planning again", seed, unflyable)
                     seed = (seed + 1) % (MAX_SEED + 1)
                     continue
-                tried = ", ".join(str(a["seed"]) for a in attempts if "clearance" not in a)
+                tried = ", ".join(str(a["seed"]) for a in attempts if not raised_clearance(a))
                 reason = f"mission generation: {unflyable} (seeds tried: {tried})"
                 raise _Failed("failed", reason) from None
             _write(directory, resolved, planned, built, limits)
