@@ -2,10 +2,13 @@
 
 The plan's clearance follows from a position-error model (:mod:`missions.position_error`),
 and the model holds only with the positioning it names: its height source and its GNSS fix.
-So, with the three drones holding at the start, :func:`check_readiness` reads what each
-reports and refuses the release, naming the drone and the reason, when
+What a vehicle is set to use is known on the ground: :func:`settings_reasons` names each
+drone whose height source (EK3_SRC1_POSZ) is not the model's, so that a team the model does
+not hold for need not take off to be refused. With the three drones holding at the start,
+:func:`check_readiness` reads what each reports and refuses the release, naming the drone
+and the reason, when
 
-- its height source (EK3_SRC1_POSZ) is not the model's;
+- its height source is not the model's;
 - its GNSS fix (GPS_RAW_INT) is worse than the model's;
 - its estimate lacks a flag a position-holding flight needs (EKF_STATUS_REPORT);
 - its estimated altitude and its GNSS altitude differ by more than the model's common
@@ -19,8 +22,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from itertools import combinations
 from typing import Any
 
@@ -65,6 +68,30 @@ class _Latest:
         self.messages[msg.get_type()] = msg
 
 
+def settings_reasons(
+    links: Sequence[VehicleLink], model: PositionErrorModel, policy: RetryPolicy
+) -> tuple[str, ...]:
+    """One reason per drone whose height source is not the one ``model`` assumes.
+
+    Raises
+    ------
+    MavlinkError
+        A parameter read went unanswered.
+    """
+    wanted = HEIGHT_SOURCES.get(model.height_source)
+    if wanted is None:
+        return ()
+    reasons = []
+    for k, link in enumerate(links):
+        source = read_parameter(link, HEIGHT_SOURCE_PARAMETER, policy)
+        if source is None or round(source) != wanted:
+            reasons.append(
+                f"drone {k + 1} ({link.name}): {HEIGHT_SOURCE_PARAMETER} is {source}, the "
+                f"{model.height_source} height the position-error model assumes is {wanted}"
+            )
+    return tuple(reasons)
+
+
 def check_readiness(
     links: Sequence[VehicleLink],
     model: PositionErrorModel,
@@ -92,28 +119,37 @@ def check_readiness(
         deadline = time.monotonic() + timeout
         while any(set(READ) - set(s.messages) for s in latest) and time.monotonic() < deadline:
             time.sleep(0.01)
-        sources = [read_parameter(link, HEIGHT_SOURCE_PARAMETER, policy) for link in links]
+        settings = settings_reasons(links, model, policy)
     finally:
         for link, sink in zip(links, latest, strict=True):
             link.remove_listener(sink)
+    names = [f"drone {k + 1} ({link.name})" for k, link in enumerate(links)]
+    reports = [sink.messages for sink in latest]
+    checked = judge_readiness(names, reports, model, holds, origin, home_height)
+    return replace(checked, reasons=settings + checked.reasons)
+
+
+def judge_readiness(
+    names: Sequence[str],
+    reports: Sequence[Mapping[str, Any]],
+    model: PositionErrorModel,
+    holds: NDArray[np.float64],
+    origin: GeodeticOrigin,
+    home_height: float,
+) -> Readiness:
+    """Judge what each drone reported (its latest message of each type in :data:`READ`,
+    by type name) against ``model`` at ``holds`` (:func:`check_readiness`)."""
     reasons: list[str] = []
     disagreement, hold_error, positions = [], [], []
-    wanted = HEIGHT_SOURCES.get(model.height_source)
-    for k, (link, sink, source) in enumerate(zip(links, latest, sources, strict=True)):
-        name = f"drone {k + 1} ({link.name})"
-        missing = set(READ) - set(sink.messages)
+    for k, (name, messages) in enumerate(zip(names, reports, strict=True)):
+        missing = set(READ) - set(messages)
         if missing:
             reasons.append(f"{name}: no {', '.join(sorted(missing))}")
             disagreement.append(math.nan)
             hold_error.append(math.nan)
             continue
-        estimate, gps = sink.messages["GLOBAL_POSITION_INT"], sink.messages["GPS_RAW_INT"]
-        flags = sink.messages["EKF_STATUS_REPORT"].flags
-        if wanted is not None and (source is None or round(source) != wanted):
-            reasons.append(
-                f"{name}: {HEIGHT_SOURCE_PARAMETER} is {source}, the {model.height_source} "
-                f"height the position-error model assumes is {wanted}"
-            )
+        estimate, gps = messages["GLOBAL_POSITION_INT"], messages["GPS_RAW_INT"]
+        flags = messages["EKF_STATUS_REPORT"].flags
         if gps.fix_type < model.min_fix_type:
             reasons.append(f"{name}: GNSS fix type {gps.fix_type} < {model.min_fix_type}")
         if flags & EKF_NEEDED != EKF_NEEDED:

@@ -12,7 +12,9 @@ missions"), with the simulator's own additions marked:
    0 [SITL: no RC] (a test may set wrong ones on purpose);
 4. upload each mission with read-back verification (``onboard``: the player's mission,
    and its trajectory by MAVLink FTP), and read the plan's parameters back;
-5. arm and start all three (MISSION_START): they take off and hold at their start;
+5. refuse the release, on the ground, if a vehicle's height source is not the one the
+   plan's position-error model assumes (:func:`~missions.execution.readiness.settings_reasons`);
+   otherwise arm and start all three (MISSION_START): they take off and hold at their start;
 6. once all three hover steadily at the hold (or, where wind keeps one from it, after
    ``hold_patience_s`` within the position-error model's bounds), check that they position
    themselves as the plan's position-error model assumes
@@ -45,7 +47,7 @@ from missions.execution.executor import ExecutionOptions, Executor
 from missions.execution.group_clock import RatePolicy
 from missions.execution.missions import MissionsExecutor
 from missions.execution.onboard import PLAYER_SCRIPT, OnboardExecutor
-from missions.execution.readiness import Readiness, check_readiness
+from missions.execution.readiness import Readiness, check_readiness, settings_reasons
 from missions.execution.stream import StreamExecutor
 from missions.execution.team import MonitorLimits
 from missions.export.items import DroneMission
@@ -308,30 +310,10 @@ def _fly(
     holds = [m.items[plan.hold_seq] for m in missions]
     watch = HoldWatch(links, holds, options.settle_speed, options.settle_distance, options.settle_s)
     rates = RateMeter(links)
-    fleet.arm()
-    fleet.start()
-    # takeoff and settling take tens of simulated seconds: give them minutes
-    watch.wait(
-        lambda: all(
-            watch.current[n] == plan.hold_seq
-            and (
-                watch.steady_for(n) >= options.settle_s
-                or watch.at_current_for(n) >= options.hold_patience_s
-            )
-            for n in watch.current
-        ),
-        300.0 / pace + options.hold_patience_s / pace + 30.0,
-        "every drone steady at its start hold",
-    )
-    readiness = Readiness(
-        watch.unsteady_reasons(plan.model, options.hold_patience_s, options.settle_s)
-    )
-    if options.check_readiness:
-        checked = check_readiness(
-            links, plan.model, plan.trajectory.in_task_frame(plan.trajectory.position[0]),
-            plan.origin, plan.home_height, policy,
-        )  # fmt: skip
-        readiness = replace(checked, reasons=readiness.reasons + checked.reasons)
+    check = options.check_readiness
+    readiness = Readiness(settings_reasons(links, plan.model, policy) if check else ())
+    if readiness.ready:
+        readiness = _take_off(fleet, watch, plan, options, policy, pace)
     injected: list[dict] = []
     if readiness.ready:
         injected = _execute(executor, plan, options, policy, pace)
@@ -376,6 +358,43 @@ def _fly(
         refused=tuple(readiness.reasons),
         faults=tuple(injected),
     )
+
+
+def _take_off(
+    fleet: Fleet,
+    watch: HoldWatch,
+    plan: FlightPlanFiles,
+    options: SitlFlightOptions,
+    policy: RetryPolicy,
+    pace: float,
+) -> Readiness:
+    """Arm and start the three, wait until they hold steady at the start, and check them
+    there (step 6)."""
+    fleet.arm()
+    fleet.start()
+    # takeoff and settling take tens of simulated seconds: give them minutes
+    watch.wait(
+        lambda: all(
+            watch.current[n] == plan.hold_seq
+            and (
+                watch.steady_for(n) >= options.settle_s
+                or watch.at_current_for(n) >= options.hold_patience_s
+            )
+            for n in watch.current
+        ),
+        300.0 / pace + options.hold_patience_s / pace + 30.0,
+        "every drone steady at its start hold",
+    )
+    readiness = Readiness(
+        watch.unsteady_reasons(plan.model, options.hold_patience_s, options.settle_s)
+    )
+    if not options.check_readiness:
+        return readiness
+    checked = check_readiness(
+        fleet.links, plan.model, plan.trajectory.in_task_frame(plan.trajectory.position[0]),
+        plan.origin, plan.home_height, policy,
+    )  # fmt: skip
+    return replace(checked, reasons=readiness.reasons + checked.reasons)
 
 
 def _execute(

@@ -15,6 +15,7 @@ import json
 from pathlib import Path
 
 import pytest
+from pymavlink import mavutil
 
 from tests.missions.sitl.flights import SITL_MARKS, fly, run_fly_sitl
 
@@ -123,11 +124,18 @@ def test_stock_sensors_fly_safely_with_the_positioning_of_the_plan(rescue: Path,
 
 
 def test_stock_sensors_on_barometric_height_are_refused_the_release(rescue: Path, tmp_path: Path):
-    """The same drones left on the barometer (the parameter a user forgot): the check at
-    the hold refuses the release, naming the height source and the drones."""
+    """The same drones left on the barometer (the parameter a user forgot): the release is
+    refused on the ground, naming the height source and the drones, and none takes off
+    (their own altitude estimates, from the tlogs)."""
     done = run_fly_sitl(rescue, tmp_path, "--stock-sensors", "--parameter", "EK3_SRC1_POSZ=1")
     assert done.returncode == 3, done.stderr[-3000:]
     assert "release refused" in done.stdout and "EK3_SRC1_POSZ" in done.stdout
     flight = json.loads((tmp_path / "flight.json").read_text())
     assert {r.split(" ")[1] for r in flight["refused"] if "EK3_SRC1_POSZ" in r} == {"1", "2", "3"}
     assert not (tmp_path / "report.json").exists()
+    for k in (1, 2, 3):
+        log = mavutil.mavlink_connection(str(tmp_path / f"drone{k}.tlog"))
+        heights = []
+        while (msg := log.recv_match(type="GLOBAL_POSITION_INT")) is not None:
+            heights.append(msg.relative_alt / 1000.0)
+        assert heights and max(heights) < 0.5, (k, max(heights, default=None))
