@@ -118,7 +118,8 @@ def build(
     """The missions of the planned ``path`` (M, 9). ``limits`` are checked between the
     phases and before every safety check of the long ones (the flight plan, the timing
     tolerance), so that a cancel or the time budget reaches the work wherever it is;
-    ``robust_margin``, the path's where measured, goes to the summary.
+    ``robust_margin``, the path's where measured, and its robust statics margin go to the
+    summary.
 
     Raises
     ------
@@ -160,6 +161,7 @@ def build(
     tolerance = timing_tolerance(system, dense, flight, stop.wrap(checkers.real.is_safe), options)
     stop.check()
     lat, lon, alt = geodetic_from_enu(flight.drones, options.origin)
+    statics, limit, _ = resolved.robust_statics(path).least()
     summary = MissionSummary(
         waypoints=len(flight.time),
         duration=flight.duration,
@@ -174,6 +176,8 @@ def build(
         position_error=resolved.position_error,
         lift_off=resolved.lift_off,
         set_down=flight.set_down,
+        robust_statics_margin=statics,
+        robust_statics_limit=limit,
         robust_margin=robust_margin,
     )
     tracks = Tracks(

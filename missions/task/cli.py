@@ -78,6 +78,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
             f"  clearance kept: {100 * mission.obstacle_clearance:.1f} cm"
             + ("" if robust is None else f"; robust margin {100 * robust:.1f} cm")
         )
+        if mission.robust_statics_margin is not None:
+            print(
+                f"  statics margins against the drones' errors: least "
+                f"{mission.robust_statics_margin:.2f} N ({mission.robust_statics_limit})"
+            )
         for k in (1, 2, 3):
             waypoints, plan = mission_file(k, "waypoints"), mission_file(k, "plan")
             print(f"  drone {k}: {out / waypoints}  {out / plan}")

@@ -104,12 +104,25 @@ class MissionSummary:
     position_error: PositionErrorModel
     lift_off: VerticalLeg | None
     set_down: SetDown | None
+    #: [N] the path's least statics margin less what the drones' own errors can take of
+    #: it (:mod:`flycrane.model.robust_statics`), and which margin that is (None in a
+    #: summary written before they were measured)
+    robust_statics_margin: float | None = None
+    robust_statics_limit: str | None = None
     #: [m] the path's least gap less what the drones' errors can close there, where the
     #: task asked for it (``mission.robust_clearance``)
     robust_margin: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        robust = {} if self.robust_margin is None else {"robust_margin": self.robust_margin}
+        robust = {
+            name: value
+            for name, value in (
+                ("robust_statics_margin", self.robust_statics_margin),
+                ("robust_statics_limit", self.robust_statics_limit),
+                ("robust_margin", self.robust_margin),
+            )
+            if value is not None
+        }
         return {
             "waypoints": self.waypoints,
             "duration": self.duration,
@@ -143,6 +156,8 @@ class MissionSummary:
             position_error=PositionErrorModel.model_validate(data["position_error"]),
             lift_off=VerticalLeg.from_dict(data["lift_off"]) if data["lift_off"] else None,
             set_down=SetDown.from_dict(data["set_down"]) if data["set_down"] else None,
+            robust_statics_margin=data.get("robust_statics_margin"),
+            robust_statics_limit=data.get("robust_statics_limit"),
             robust_margin=data.get("robust_margin"),
         )
 

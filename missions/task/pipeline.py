@@ -8,7 +8,8 @@ cannot be flown safely, is an outcome (status "failed" with the reason), not an 
 every phase ends in the one failure exit, which writes ``summary.json``. A path whose
 missions fail their check is planned again with another seed while the budget lasts; with
 ``mission.robust_clearance``, a path the drones' errors could bring closer to an obstacle
-than it keeps is planned again with a larger clearance.
+than it keeps is planned again with a larger clearance, and one whose statics margins they
+could exhaust with another seed.
 """
 
 from __future__ import annotations
@@ -91,8 +92,10 @@ def run_task(
     budget (``planner.time_budget``, shared by the plans) lasts; the outcome lists what was
     tried (``attempts``) and ``task.json`` the seed that made the missions. With
     ``mission.robust_clearance``, a path whose robust margin is below zero is planned
-    again keeping that much more clearance, up to :data:`MAX_ROBUST_PLANS` times while the
-    budget lasts; the last path is built, and the summary gives its margin."""
+    again keeping that much more clearance, up to :data:`MAX_ROBUST_PLANS` times, and one
+    whose statics margins the drones' errors could exhaust (its robust statics margin
+    below zero) with the next seed, as an unflyable one, while the budget lasts; the last
+    path is built, and the summary gives its margins."""
     directory = TaskDirectory(out_dir).create()
     resolved = resolved or resolve_task(task, base_dir)
     report = progress or (lambda *_: None)
@@ -142,6 +145,14 @@ def run_task(
                         f"robust margin {robust_margin:.3f} m: planned again keeping "
                         f"{clearance:.3f} m")})  # fmt: skip
                     raises += 1
+                    continue
+                statics, limit, _ = resolved.robust_statics(planned.path).least()
+                another = len(attempts) - raises + 1 < MAX_PLANS
+                if statics < 0 and another and time.monotonic() < planning_ends:
+                    attempts.append({"seed": seed, "reason": (
+                        f"robust statics margin {statics:.3f} N ({limit}): planned again "
+                        "with the next seed")})  # fmt: skip
+                    seed = (seed + 1) % (MAX_SEED + 1)
                     continue
             report("generating", None)
             outcome = TaskOutcome(**{**outcome.__dict__, "metrics": planned.metrics})

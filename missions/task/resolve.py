@@ -18,6 +18,7 @@ from pydantic import ValidationError
 
 from flycrane.errors import FieldProblem, InputError
 from flycrane.model.kinematics import drone_positions_from_configuration
+from flycrane.model.robust_statics import RobustStatics
 from flycrane.model.system_spec import SystemSpec, problems_from_validation_error, system_preset
 from flycrane.planning.algorithms.bitrrt import MESH_REASON, PayloadMeshes
 from flycrane.planning.planners import Algorithm
@@ -74,6 +75,12 @@ class ResolvedTask:
         model = self.position_error
         common = (model.common_horizontal, model.common_vertical)
         return RobustClearance(self.checkers.real, common, model.own)
+
+    def robust_statics(self, path: NDArray[np.float64]) -> RobustStatics:
+        """The statics margins along ``path`` (at the robust clearance's resolution) against
+        what the position-error model's own drone errors can take of them."""
+        samples = self.problem.space.discretize_path(path, self.robust.resolution)
+        return RobustStatics.of(self.problem.system, samples, self.position_error.own)
 
     def self_contained(self) -> TaskSpec:
         """The task with its system, scene, start, goal and planner written out, so that

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import time
 import tracemalloc
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from flycrane.errors import InputError
 from flycrane.planning.planners import PlannerOptions
 from missions.options import MAX_MISSION_DURATION_S, MissionOptions
 from missions.task.build import Cancelled, MissionFailure, PhaseLimits, UnflyablePath, build
+from missions.task.directory import raised_clearance
 from missions.task.pipeline import run_task
 from missions.task.resolve import resolve_task
 from missions.task.spec import TaskSpec
@@ -145,6 +147,36 @@ def test_a_path_whose_missions_fail_their_check_is_planned_again_with_the_next_s
     written = json.loads((tmp_path / "task.json").read_text())
     assert written["planner"]["seed"] == 8
     assert json.loads((tmp_path / "summary.json").read_text())["attempts"][0]["seed"] == 7
+
+
+def test_a_path_the_drones_errors_could_make_infeasible_is_planned_again_when_asked(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    """``mission.robust_clearance``: a path whose robust statics margin is below zero (made
+    so here, for the first path) is planned again with the next seed, and the attempt says
+    which margin fell short."""
+    from missions.task.resolve import ResolvedTask
+
+    calls: list[int] = []
+    real = ResolvedTask.robust_statics
+
+    def short_once(self, path):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        statics = real(self, path)
+        if len(calls) == 1:
+            return replace(statics, bound=statics.bound + 100.0)
+        return statics
+
+    monkeypatch.setattr(ResolvedTask, "robust_statics", short_once)
+    mission = MissionOptions(position_error="sitl", robust_clearance=True)
+    task = TaskSpec(scene="rescue", planner=PlannerOptions(seed=7), mission=mission)
+    outcome = run_task(task, tmp_path)
+    assert outcome.status == "done", outcome.reason
+    (attempt,) = [a for a in outcome.attempts if not raised_clearance(a)]
+    assert attempt["seed"] == 7 and "robust statics margin -9" in attempt["reason"]
+    assert attempt["reason"].split("(")[1].split(" ")[0] in ("slack", "overload", "thrust")
+    assert json.loads((tmp_path / "task.json").read_text())["planner"]["seed"] == 8
+    assert outcome.mission is not None and outcome.mission.robust_statics_margin > 0
 
 
 def test_planning_again_stops_at_the_most_plans_and_says_which_seeds(

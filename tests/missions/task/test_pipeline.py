@@ -19,6 +19,7 @@ from flycrane.errors import InputError
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.kinematics import drone_positions_from_configuration
 from flycrane.model.pose_error import height_bound
+from flycrane.model.statics import evaluate_statics
 from flycrane.planning.planners import PlannerOptions
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import InvalidConfigurationError
@@ -266,6 +267,9 @@ def test_a_robust_clearance_plans_again_until_the_errors_cannot_close_the_gap(tm
     assert summary["robust_margin"] >= 0.0
     assert f"planned again keeping {raised[-1]['clearance']:.3f} m" in printed
     assert f"robust margin {100 * summary['robust_margin']:.1f} cm" in printed
+    assert summary["robust_statics_margin"] >= 0.0
+    assert (f"least {summary['robust_statics_margin']:.2f} N "
+            f"({summary['robust_statics_limit']})") in printed  # fmt: skip
     task = json.loads((out / "task.json").read_text())
     assert task["scene"]["collision"]["obstacle_clearance"] == summary["obstacle_clearance"]
     problem = PlanningProblem.from_scene(load_scene("puzzle")[0])
@@ -278,3 +282,21 @@ def test_a_robust_clearance_plans_again_until_the_errors_cannot_close_the_gap(tm
 def test_without_a_robust_clearance_no_robust_margin_is_reported(rescue):
     _, out = rescue
     assert "robust_margin" not in json.loads((out / "summary.json").read_text())["mission"]
+
+
+def test_the_statics_margins_are_reported_against_the_drones_errors(rescue):
+    """Every summary gives the path's least statics margin less what the model's drone
+    errors can take of it: below the path's least plain margin (statics of the path's
+    samples), by no more than the bound's worst, and above zero on the default Rescue
+    (its margins, 1.4 N, are far beyond what 3 cm of error takes)."""
+    _, out = rescue
+    summary = json.loads((out / "summary.json").read_text())["mission"]
+    problem = PlanningProblem.from_scene(load_scene("rescue")[0])
+    path = np.array(json.loads((out / "path.json").read_text())["configurations"])
+    report = evaluate_statics(problem.system, problem.space.discretize_path(path, 0.05))
+    least = min(report.slack_margin.min(), report.overload_margin.min(),
+                report.thrust_margin.min())  # fmt: skip
+    assert 0.0 < summary["robust_statics_margin"] < least
+    assert least - summary["robust_statics_margin"] < 0.5
+    kind, _, _, number = summary["robust_statics_limit"].split(" ")
+    assert kind in ("slack", "overload", "thrust") and 1 <= int(number) <= 6
