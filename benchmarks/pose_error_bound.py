@@ -19,7 +19,12 @@ With ``--near D``, the bound on how far the drones' errors can close the gap to 
 nearest obstacle instead, at the samples whose planned configuration is within D [m] of
 one (real obstacles, no clearance): the bound of :class:`flycrane.planning.
 robust_clearance.RobustClearance`, against the fixed clearance and the gap the flight lost
-there. BENCHMARKS.md ("Planner v3", "Robust margins") records the runs.
+there.
+
+With ``--statics``, the bound on how far the drones' own errors can lower each tension and
+thrust margin (:mod:`flycrane.model.robust_statics`) at every sample, against how far the
+flown configuration's margins fell below the planned one's. BENCHMARKS.md ("Planner v3",
+"Robust margins", "Robust statics margins") records the runs.
 """
 
 from __future__ import annotations
@@ -34,6 +39,8 @@ from flycrane.model.cable_system import CableSystem
 from flycrane.model.direct_kinematics import configuration_from_drone_positions
 from flycrane.model.kinematics import matrix_from_tilt_torsion
 from flycrane.model.pose_error import displacement_bound
+from flycrane.model.robust_statics import RobustStatics, margins
+from flycrane.model.statics import evaluate_statics
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.world.bodies import box_corners, payload_bodies
@@ -119,12 +126,44 @@ def measure_near(flight: Path, model_name: str, near: float) -> dict:
     }
 
 
+def measure_statics(flight: Path, model_name: str) -> dict:
+    """Each margin's fall from the planned to the flown configuration against its bound."""
+    system, _, planned, flown = planned_and_flown(flight)
+    keep = np.isfinite(planned).all(axis=1) & np.isfinite(flown).all(axis=1)
+    robust = RobustStatics.of(system, planned[keep], PRESETS[model_name].own)
+    fall = robust.margin - margins(evaluate_statics(system, flown[keep]))
+    bounded = np.isfinite(robust.bound) & np.isfinite(fall)
+    return {
+        "flight": str(flight),
+        "samples": int(keep.sum()),
+        "bound": np.percentile(robust.bound[bounded], [50, 100]),
+        "fall": np.percentile(fall[bounded], [50, 100]),
+        "ratio": float(np.max(fall[bounded] / robust.bound[bounded])),
+        "covered": float(np.mean(fall[bounded] <= robust.bound[bounded])),
+        "planned_least": float(robust.margin.min()),
+        "robust_least": robust.least()[0],
+        "flown_least": float((robust.margin - fall)[bounded].min()),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("flights", nargs="+", type=Path)
     parser.add_argument("--model", default="sitl", choices=sorted(PRESETS))
     parser.add_argument("--near", type=float, help="[m] the nearest obstacle's direction")
+    parser.add_argument("--statics", action="store_true", help="the margins' bound instead")
     args = parser.parse_args()
+    if args.statics:
+        print("flight: samples | bound median/max N | fall median/max N | worst fall/bound | "
+              "covered | least margin planned/robust/flown N")  # fmt: skip
+        for r in (measure_statics(flight, args.model) for flight in args.flights):
+            b, f = r["bound"], r["fall"]
+            print(
+                f"{r['flight']}: {r['samples']} | {b[0]:.3f}/{b[1]:.3f} | {f[0]:.3f}/{f[1]:.3f}"
+                f" | {r['ratio']:.2f} | {r['covered']:.1%} | {r['planned_least']:.2f}/"
+                f"{r['robust_least']:.2f}/{r['flown_least']:.2f}"
+            )
+        return
     if args.near is not None:
         print("flight: samples | bound min/median/max cm | at the least gap | lost max | covered")
         for r in (measure_near(flight, args.model, args.near) for flight in args.flights):
