@@ -23,15 +23,18 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, replace
+from functools import partial
 from itertools import combinations
 
 import numpy as np
 from numpy.typing import NDArray
 
-from missions.execution.group_clock import GroupClock, RatePolicy
+from missions.execution.anchor import Anchor, FormationRoom
+from missions.execution.group_clock import GroupClock
+from missions.execution.options import ExecutionOptions
 from missions.execution.record import ExecutionRecord
-from missions.execution.team import Fault, FaultKind, MonitorLimits, TeamMonitor
+from missions.execution.team import Fault, FaultKind, TeamMonitor
 from missions.execution.vehicles import VehicleFrame, VehicleState
 from missions.mavlink.commands import send_command, set_message_interval
 from missions.mavlink.errors import MavlinkError
@@ -49,15 +52,13 @@ logger = logging.getLogger(__name__)
 #: is never judged on less than this much of wall time (:meth:`Executor.__init__`).
 GROUND_PAUSE_S = 0.1
 #: Faults after which the drone still flies under its own control, with an estimate the
-#: team can follow to the stop (:meth:`Executor._follow`). Not a stray drone: one that
-#: cannot follow its targets (a weak motor) wanders, and following it spread the team
-#: 0.45 m apart (p95) on the Puzzle where braking kept it safe (BENCHMARKS.md).
+#: team can follow to the stop (:meth:`Executor._follow`). Not one that cannot follow its
+#: targets (a weak motor): it wanders, and following its progress along the plan spread
+#: the team 0.45 m apart (p95) on the Puzzle; the stream keeps the formation on it
+#: instead, as far as that is clear (:mod:`.anchor`).
 FOLLOWED = (FaultKind.MODE, FaultKind.FAILSAFE)
 #: How far from the clock's plan time a followed drone's progress is looked for [s].
 FOLLOW_WINDOW_S = 3.0
-#: The most a target may be ahead of its vehicle's present [s]: beyond, a lead would hide
-#: a slow vehicle rather than make up its controller's lag.
-MAX_LEAD_S = 0.3
 #: The clock's rate per second of plan time between it and a followed drone [1/s].
 FOLLOW_GAIN = 2.0
 #: A vehicle not heard for this long [s of common time] does not steer the clock: its
@@ -75,31 +76,6 @@ STREAMS = {
     "NAV_CONTROLLER_OUTPUT": 0.05,
     "SYSTEM_TIME": 0.5,
 }
-
-
-@dataclass(frozen=True)
-class ExecutionOptions:
-    """How the plan is played (times in seconds of common time)."""
-
-    rate_hz: float = 20.0  #: ticks per second of vehicle time (10-50)
-    #: from the start command to plan time 0; None: the executor's own
-    #: (:attr:`Executor.default_start_delay`)
-    start_delay: float | None = None
-    max_extrapolation: float = 0.1  #: of a vehicle's clock past its last message
-    #: targets are for this much ahead of a vehicle's present [s of common time],
-    #: (horizontal, vertical): what its controller lags them by on top of their way to it;
-    #: None: the executor's own :attr:`Executor.lead`
-    lead: tuple[float, float] | None = None
-    policy: RatePolicy = field(default_factory=RatePolicy)
-    limits: MonitorLimits = field(default_factory=MonitorLimits)
-
-    def __post_init__(self) -> None:
-        if not 10.0 <= self.rate_hz <= 50.0:
-            raise ValueError(f"rate_hz: {self.rate_hz} is outside 10-50 Hz")
-        if self.lead is not None and not all(0.0 <= x <= MAX_LEAD_S for x in self.lead):
-            raise ValueError(f"lead: {self.lead} is outside 0-{MAX_LEAD_S} s")
-        if self.start_delay is not None and not 0.0 <= self.start_delay <= 60.0:
-            raise ValueError(f"start_delay: {self.start_delay} is outside 0-60 s")
 
 
 class Executor(ABC):
@@ -125,6 +101,9 @@ class Executor(ABC):
     #: began up to 1.7 cm below their start and the Puzzle's 20-40 ms further apart
     #: (BENCHMARKS.md, "Execution in step", "Third run").
     default_start_delay = 3.0
+    #: Whether the other two keep the formation on a drone that cannot keep its targets
+    #: (:mod:`.anchor`): where the ground sends every target.
+    anchors = False
 
     def __init__(
         self,
@@ -134,12 +113,13 @@ class Executor(ABC):
         options: ExecutionOptions | None = None,
         speedup: float = 1.0,
         retry: RetryPolicy | None = None,
+        room: FormationRoom | None = None,
     ) -> None:
         if len(links) != 3:
             raise ValueError(f"three vehicles, not {len(links)}")
         self.links, self.trajectory, self.origin = list(links), trajectory, origin
         self.options = options or ExecutionOptions()
-        self.speedup, self.retry = speedup, retry or RetryPolicy()
+        self.speedup, self.retry, self.room = speedup, retry or RetryPolicy(), room
         self.vehicles = [
             VehicleState(link, speedup, self.options.max_extrapolation) for link in links
         ]
@@ -158,6 +138,7 @@ class Executor(ABC):
         self._done = threading.Event()
         self._stopping = False
         self._leader: int | None = None  #: a faulty drone the stopping team follows
+        self._anchor: tuple[int, Anchor] | None = None  #: one it keeps the formation on
         self._sign = 1.0  #: -1 while retreating along the plan
         self._lock = threading.Lock()
 
@@ -259,7 +240,15 @@ class Executor(ABC):
         if self.clock is not None and t < self.clock.start + self.held.get(k, -np.inf):
             p, v, a = self.trajectory.at(0.0)
             return p[k], v[k] * 0.0, a[k] * 0.0
-        return self.target(k, t)
+        p, v, a = self.target(k, t)
+        dp, dv = self._shift(k, t)
+        return p + dp, v + dv, a
+
+    def _shift(self, k: int, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """How far drone k's target moves with a faulty drone (:mod:`.anchor`)."""
+        if self._anchor is None or self._anchor[0] == k:
+            return np.zeros(3), np.zeros(3)
+        return self._anchor[1].shift(t)
 
     def _errors(
         self, t: float
@@ -281,7 +270,7 @@ class Executor(ABC):
             at, ned = estimate
             task = self.frames[k].task_position(ned)
             p, v, _ = self.target(k, at)
-            error = task - (p + self.trajectory.homes[k])
+            error = task - (p + self._shift(k, at)[0] + self.trajectory.homes[k])
             tracking[k] = float(np.linalg.norm(error))
             speed = float(np.linalg.norm(v))
             if speed > MOVING:
@@ -337,8 +326,14 @@ class Executor(ABC):
         if stopping and not self._stopping:
             self._stopping = True
             self.record.commanded_stop_at = t
+            weak = [f.drone - 1 for f in stopping if f.kind is FaultKind.ATTITUDE]
             if stopping[0].kind in FOLLOWED:
                 self._leader = stopping[0].drone - 1
+            elif weak and self.anchors:
+                k, clock = weak[0], self.clock
+                anchor = Anchor(self.vehicles[k], self.frames[k], self.trajectory.homes[k],
+                                partial(self.target, k), clock.tau, k, self.room)  # fmt: skip
+                self._anchor = (k, anchor)
             logger.warning("team stop: %s", "; ".join(map(str, stopping)))
         for fault in faults:
             self.record.faults.append({**asdict(fault), "kind": str(fault.kind)})
@@ -450,7 +445,7 @@ class Executor(ABC):
             ]
             if active:
                 raise RuntimeError(f"the team cannot go on: faults {active}")
-            self._stopping, self._sign, self._leader = False, sign, None
+            self._stopping, self._sign, self._leader, self._anchor = False, sign, None, None
             self.monitor.reported.clear()  # a fault that comes back stops the team again
             self._done.clear()
 

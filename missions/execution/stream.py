@@ -34,6 +34,7 @@ class StreamExecutor(Executor):
     mode = "stream"
     expected_mode = COPTER_MODES["GUIDED"]
     default_lead = (0.05, 0.0)
+    anchors = True
 
     def engage(self, timeout: float) -> None:
         """Targets at plan time 0 (each drone's start, where it holds), then GUIDED on the

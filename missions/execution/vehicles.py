@@ -94,6 +94,7 @@ class VehicleState:
         #: NAV_CONTROLLER_OUTPUT)
         self.attitude_target: tuple[float, float] | None = None
         self.position: tuple[float, NDArray[np.float64]] | None = None  #: (boot s, NED)
+        self.velocity: NDArray[np.float64] | None = None  #: NED [m/s], of ``position``
         self.home_down: float | None = None
         self.origin: tuple[float, float] | None = None  #: EKF origin lat, lon [deg]
         self.heard: float | None = None  #: ground monotonic time of the last message
@@ -120,6 +121,7 @@ class VehicleState:
                 self.mode, self.system_status = msg.custom_mode, msg.system_status
             elif kind == "LOCAL_POSITION_NED":
                 self.position = (msg.time_boot_ms / 1000.0, np.array([msg.x, msg.y, msg.z]))
+                self.velocity = np.array([msg.vx, msg.vy, msg.vz])
             elif kind == "GPS_RAW_INT":
                 self.fix_type = msg.fix_type
             elif kind == "ATTITUDE":
@@ -187,3 +189,8 @@ class VehicleState:
                 return None
             boot, ned = self.position
             return boot + self.offset, ned.copy()
+
+    def velocity_estimate(self) -> NDArray[np.float64] | None:
+        """Local NED velocity [m/s] of the last position estimate."""
+        with self._lock:
+            return None if self.velocity is None else self.velocity.copy()

@@ -25,7 +25,7 @@ import sys
 from pathlib import Path
 
 from flycrane.errors import FlyCraneError
-from missions.execution.executor import MAX_LEAD_S
+from missions.execution.options import MAX_LEAD_S
 from missions.flight_report import report_sitl_flight, write_report
 from missions.sitl.faults import KINDS, FaultPlan
 from missions.sitl.harness import SitlFlightOptions, fly_on_sitl

@@ -12,9 +12,8 @@ missions"), with the simulator's own additions marked:
    0 [SITL: no RC] (a test may set wrong ones on purpose);
 4. upload each mission with read-back verification (``onboard``: the player's mission,
    and its trajectory by MAVLink FTP), and read the plan's parameters back;
-5. refuse the release, on the ground, if a vehicle's height source is not the one the
-   plan's position-error model assumes (:func:`~missions.execution.readiness.settings_reasons`);
-   otherwise arm and start all three (MISSION_START): they take off and hold at their start;
+5. on the ground, refuse the release if a vehicle's height source is not the plan's
+   model's; otherwise arm and start all three (MISSION_START): they take off and hold;
 6. once all three hover steadily at the hold (or, where wind keeps one from it, after
    ``hold_patience_s`` within the position-error model's bounds), check that they position
    themselves as the plan's position-error model assumes
@@ -43,10 +42,12 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
-from missions.execution.executor import ExecutionOptions, Executor
+from missions.execution.anchor import FormationRoom
+from missions.execution.executor import Executor
 from missions.execution.group_clock import RatePolicy
 from missions.execution.missions import MissionsExecutor
 from missions.execution.onboard import PLAYER_SCRIPT, OnboardExecutor
+from missions.execution.options import ExecutionOptions
 from missions.execution.readiness import Readiness, check_readiness, settings_reasons
 from missions.execution.stream import StreamExecutor
 from missions.execution.team import MonitorLimits
@@ -139,6 +140,7 @@ class FlightPlanFiles:
     model: PositionErrorModel
     origin: GeodeticOrigin
     home_height: float
+    room: FormationRoom  #: where the formation may move with a faulty drone (stream)
 
     @classmethod
     def read(cls, task_dir: Path) -> FlightPlanFiles:
@@ -152,7 +154,9 @@ class FlightPlanFiles:
         directory = TaskDirectory(task_dir)
         missions = directory.missions()
         summary = directory.mission_summary()
-        options = directory.task().mission
+        task = directory.task()
+        options = task.mission
+        model, trajectory = position_error_model(options.position_error), directory.trajectory()
         return cls(
             missions=tuple(missions),
             parameters=tuple(directory.parameters()),
@@ -160,10 +164,11 @@ class FlightPlanFiles:
             release_seq=summary.release.release_seq,
             end_seq=tuple(m.items[-1].seq for m in missions),
             duration_s=summary.duration,
-            trajectory=directory.trajectory(),
-            model=position_error_model(options.position_error),
+            trajectory=trajectory,
+            model=model,
             origin=options.origin,
             home_height=options.home_height,
+            room=FormationRoom.of_task(task, task_dir, trajectory, model.obstacle_clearance),
         )
 
     def for_mode(self, mode: Mode) -> tuple[tuple[DroneMission, ...], int]:
@@ -257,7 +262,7 @@ def _executor(
     )
     common = dict(options=execution, speedup=speedup, retry=policy)
     if mode == "stream":
-        return StreamExecutor(links, plan.trajectory, plan.origin, **common)  # type: ignore[arg-type]
+        return StreamExecutor(links, plan.trajectory, plan.origin, room=plan.room, **common)  # type: ignore[arg-type]
     if mode == "onboard":
         return OnboardExecutor(links, plan.trajectory, plan.origin, player_seq=start_seq,
                                **common)  # type: ignore[arg-type]  # fmt: skip

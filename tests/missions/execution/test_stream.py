@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from missions.execution.executor import ExecutionOptions
 from missions.execution.group_clock import GroupClock
+from missions.execution.options import ExecutionOptions
 from missions.execution.stream import StreamExecutor
 from missions.options import GeodeticOrigin
 from missions.trajectory.drone_trajectory import DroneTrajectory

@@ -9,6 +9,9 @@ import pytest
 
 from missions.execution.vehicles import VehicleState
 
+#: a LOCAL_POSITION_NED's fields at rest at the origin
+STILL = {"x": 0.0, "y": 0.0, "z": 0.0, "vx": 0.0, "vy": 0.0, "vz": 0.0}
+
 
 class Link:
     def add_listener(self, kinds, listener) -> None:
@@ -37,9 +40,9 @@ def test_the_least_delayed_message_sets_the_clock(monkeypatch):
     ground = [100.0]
     monkeypatch.setattr("missions.execution.vehicles.time.monotonic", lambda: ground[0])
     state = VehicleState(Link(), speedup=5.0, max_extrapolation=10.0)
-    heard(state, "LOCAL_POSITION_NED", time_boot_ms=10_000, x=0.0, y=0.0, z=0.0)
+    heard(state, "LOCAL_POSITION_NED", time_boot_ms=10_000, **STILL)
     ground[0] += 0.15  # 0.75 s of the vehicle's time; its next message stamped 10.5 s
-    heard(state, "LOCAL_POSITION_NED", time_boot_ms=10_500, x=0.0, y=0.0, z=0.0)
+    heard(state, "LOCAL_POSITION_NED", time_boot_ms=10_500, **STILL)
     assert state.boot_time() == pytest.approx(10.75)
 
 

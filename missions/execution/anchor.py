@@ -1,0 +1,139 @@
+"""Keeping the load safe around a drone that cannot keep its targets.
+
+A drone whose attitude leaves what its own controller asks for (a weak motor, a broken
+propeller: :attr:`~.team.FaultKind.ATTITUDE`) stops the team, but it cannot stop where it
+is told: with one motor short of thrust it runs out of roll authority and swings away
+from its stop before it comes back. Braked at their own stops, the other two let the
+cables go slack or the platform tilt past its bound (BENCHMARKS.md "A weak motor").
+
+Where the ground flies the drones (the stream executor) it moves the other two with it,
+as little as keeps the load safe: every :data:`ROOM_PERIOD_S` the faulty drone's
+deviation from its target is carried :data:`PREDICTION_S` ahead with its velocity, and
+the others' targets move by the least fraction of it (0, 1/4, ... 1;
+:class:`FormationRoom`) at which the load, rebuilt by the direct kinematics with the
+faulty drone off by the whole deviation, is feasible and keeps the plan's clearance from
+the real obstacles. Where none is, they move by the largest fraction at which the
+formation, translated as a whole, keeps that clearance.
+
+Moving them by the whole deviation always (tried first) kept the Puzzle's load but took
+healthy drones into the Rescue's buildings. Beyond :data:`LIMIT` the drone is not swinging
+but leaving (falling, flying away), and the others move no farther. The players on board
+fly their own trajectories: there the team brakes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from flycrane.model.cable_system import CableSystem
+from flycrane.model.direct_kinematics import configuration_from_drone_positions
+from flycrane.planning.problem import PlanningProblem
+from flycrane.planning.validity import ValidityChecker
+from missions.execution.vehicles import VehicleFrame, VehicleState
+from missions.geodesy import enu_from_ned
+from missions.task.spec import TaskSpec
+from missions.trajectory.drone_trajectory import DroneTrajectory
+
+#: The farthest [m] the healthy drones follow a faulty one from their targets.
+LIMIT = 1.0
+#: The fractions of the shift tried, largest first.
+FRACTIONS = (1.0, 0.75, 0.5, 0.25)
+#: How often the room is checked [s of common time]: a check takes about a millisecond,
+#: and the executor asks for the shift four times a tick.
+ROOM_PERIOD_S = 0.1
+#: How far ahead [s] the faulty drone's deviation is carried on with its velocity for the
+#: check: about what the others' controllers take to follow a target, and the check's
+#: period.
+PREDICTION_S = 0.5
+
+Target = Callable[[float], tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]
+
+
+@dataclass(frozen=True)
+class FormationRoom:
+    """How far the others follow a faulty drone's deviation (module docstring)."""
+
+    system: CableSystem
+    trajectory: DroneTrajectory
+    checker: ValidityChecker  #: the real obstacles grown by the plan's clearance
+
+    @classmethod
+    def of_task(
+        cls, task: TaskSpec, base_dir: Path, trajectory: DroneTrajectory, clearance: float
+    ) -> FormationRoom:
+        """From a task's directory's (self-contained) task: its scene's real obstacles
+        grown by ``clearance`` [m]."""
+        problem = PlanningProblem.from_scene(task.scene, task.system, base_dir)  # type: ignore[arg-type]
+        room = cls(problem.system, trajectory, problem.validity.with_clearance(clearance))
+        room(0.0, np.zeros(3), 0)  # the first check loads the compiled checker: not in flight
+        return room
+
+    def __call__(self, tau: float, shift: NDArray[np.float64], weak: int) -> float:
+        """How much of ``shift`` [m, ENU], drone ``weak``'s (0-based) deviation, the other
+        two follow at plan time ``tau`` (module docstring): the least of :data:`FRACTIONS`
+        and 0 at which the load is safe (feasible and clear) with drone ``weak`` off by the
+        whole shift; where none is, the largest at which the formation translated as a
+        whole is clear; 0 if none is."""
+        drones = self.trajectory.in_task_frame(self.trajectory.at(tau)[0])
+        q = configuration_from_drone_positions(self.system, drones).q
+        fractions = (0.0, *FRACTIONS[::-1])
+        moved = drones + np.multiply.outer(fractions, shift)[:, None, :]
+        moved[:, weak] = drones[weak] + shift
+        solved = configuration_from_drone_positions(
+            self.system, moved, np.repeat(q, len(fractions), axis=0)
+        )
+        safe = solved.converged & self.checker.is_safe(solved.q)
+        if safe.any():
+            return fractions[int(np.argmax(safe))]
+        translated = np.repeat(q, len(FRACTIONS), axis=0)
+        translated[:, :3] += np.outer(FRACTIONS, shift)
+        clear = self.checker.is_safe(translated)
+        return next((f for f, ok in zip(FRACTIONS, clear, strict=True) if ok), 0.0)
+
+
+@dataclass
+class Anchor:
+    """The faulty drone the other two follow (module docstring)."""
+
+    vehicle: VehicleState
+    frame: VehicleFrame
+    home: NDArray[np.float64]  #: its home in the task frame (ENU)
+    target: Target  #: its target (home-relative ENU position, velocity, acceleration) at t
+    tau: Callable[[float], float]  #: the plan time at common time t
+    drone: int  #: which (0-based)
+    room: FormationRoom | None  #: None: no obstacles to keep clear of
+    #: (common time, fraction) of the last room check
+    checked: tuple[float, float] = (-float("inf"), 0.0)
+
+    def shift(self, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(position, velocity) the others' targets move by at common time ``t`` (ENU)."""
+        estimate, velocity = self.vehicle.estimate(), self.vehicle.velocity_estimate()
+        if estimate is None or velocity is None:
+            return np.zeros(3), np.zeros(3)
+        at, ned = estimate
+        p, v, _ = self.target(at)
+        drift = enu_from_ned(velocity) - v
+        deviation = self.frame.task_position(ned) - (p + self.home) + drift * (t - at)
+        length = float(np.linalg.norm(deviation))
+        if length > LIMIT:
+            deviation, drift = deviation * (LIMIT / length), np.zeros(3)
+        fraction = self._fraction(t, deviation, drift)
+        return deviation * fraction, drift * fraction
+
+    def _fraction(
+        self, t: float, deviation: NDArray[np.float64], drift: NDArray[np.float64]
+    ) -> float:
+        """The room's fraction for the deviation :data:`PREDICTION_S` ahead, checked every
+        :data:`ROOM_PERIOD_S`."""
+        if self.room is None:
+            return 1.0
+        if t - self.checked[0] >= ROOM_PERIOD_S:
+            ahead = deviation + drift * PREDICTION_S
+            ahead *= min(1.0, LIMIT / max(float(np.linalg.norm(ahead)), 1e-9))
+            self.checked = (t, self.room(self.tau(t), ahead, self.drone))
+        return self.checked[1]
