@@ -11,8 +11,7 @@ from flycrane.model.kinematics import (
     matrix_from_tilt_torsion,
 )
 from flycrane.model.pose_error import displacement_bound, height_bound, point_sensitivity
-from flycrane.model.statics import evaluate_statics
-from flycrane.planning.problem import PlanningProblem
+from tests.flycrane.model.sampling import feasible_configurations
 
 #: The Rescue's footbridge ends and the Puzzle-like offset point, in the platform frame.
 POINTS = np.array([[2.3, 0.4, -0.4], [-2.3, -0.4, -0.4], [0.0, 0.0, -0.35]])
@@ -20,12 +19,8 @@ POINTS = np.array([[2.3, 0.4, -0.4], [-2.3, -0.4, -0.4], [0.0, 0.0, -0.35]])
 
 @pytest.fixture(scope="module")
 def configurations():
-    """Feasible configurations of the Rescue's space (taut cables, non-singular J)."""
-    problem = PlanningProblem.named("rescue")
-    rng = np.random.default_rng(5)
-    q = problem.space.sample_uniform(rng, 400)
-    feasible = evaluate_statics(problem.system, q).feasible
-    return problem.system, q[feasible][:20]
+    """Feasible configurations of the Rescue's space."""
+    return feasible_configurations("rescue", 5, 20)
 
 
 def moved_points(system, q, drones):

@@ -10,17 +10,13 @@ from flycrane.model.direct_kinematics import configuration_from_drone_positions
 from flycrane.model.kinematics import drone_positions_from_configuration
 from flycrane.model.robust_statics import MARGIN_NAMES, RobustStatics, margin_bounds, margins
 from flycrane.model.statics import evaluate_statics
-from flycrane.planning.problem import PlanningProblem
+from tests.flycrane.model.sampling import feasible_configurations
 
 
 @pytest.fixture(scope="module")
 def configurations():
-    """Feasible configurations of the Puzzle's space (taut cables, non-singular J)."""
-    problem = PlanningProblem.named("puzzle")
-    rng = np.random.default_rng(11)
-    q = problem.space.sample_uniform(rng, 400)
-    feasible = evaluate_statics(problem.system, q).feasible
-    return problem.system, q[feasible][:12]
+    """Feasible configurations of the Puzzle's space."""
+    return feasible_configurations("puzzle", 11, 12)
 
 
 def margins_for(system, q, drones):
