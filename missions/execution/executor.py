@@ -54,8 +54,8 @@ GROUND_PAUSE_S = 0.1
 #: Faults after which the drone still flies under its own control, with an estimate the
 #: team can follow to the stop (:meth:`Executor._follow`). Not one that cannot follow its
 #: targets (a weak motor): it wanders, and following its progress along the plan spread
-#: the team 0.45 m apart (p95) on the Puzzle; the stream keeps the formation on it
-#: instead, as far as that is clear (:mod:`.anchor`).
+#: the team 0.45 m apart (p95) on the Puzzle; in the stream the other two follow its
+#: deviation instead, as little as keeps the load safe (:mod:`.anchor`).
 FOLLOWED = (FaultKind.MODE, FaultKind.FAILSAFE)
 #: How far from the clock's plan time a followed drone's progress is looked for [s].
 FOLLOW_WINDOW_S = 3.0
@@ -101,8 +101,8 @@ class Executor(ABC):
     #: began up to 1.7 cm below their start and the Puzzle's 20-40 ms further apart
     #: (BENCHMARKS.md, "Execution in step", "Third run").
     default_start_delay = 3.0
-    #: Whether the other two keep the formation on a drone that cannot keep its targets
-    #: (:mod:`.anchor`): where the ground sends every target.
+    #: Whether the other two follow a drone that cannot keep its targets (:mod:`.anchor`):
+    #: where the ground sends every target.
     anchors = False
 
     def __init__(
@@ -138,7 +138,7 @@ class Executor(ABC):
         self._done = threading.Event()
         self._stopping = False
         self._leader: int | None = None  #: a faulty drone the stopping team follows
-        self._anchor: tuple[int, Anchor] | None = None  #: one it keeps the formation on
+        self._anchor: tuple[int, Anchor] | None = None  #: one the other two follow
         self._sign = 1.0  #: -1 while retreating along the plan
         self._lock = threading.Lock()
 
