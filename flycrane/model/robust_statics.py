@@ -2,23 +2,23 @@
 robust margins: each margin less that bound.
 
 The margins (slack and overload of each cable, eq. 4-6, and thrust of each drone, eq. 7:
-design.md section 5) are functions of the configuration, and the configuration of the three drones'
-positions A (the direct kinematics). To first order a drone error dA changes margin j by
-``(dm_j / dA) dA``; the derivative is taken by central differences through the direct
-kinematics (:func:`margin_gradients`), which needs no parametrization of the platform's
-rotation (the tilt-torsion angles are singular upright). An error the three drones share
-moves the platform rigidly, under gravity alone, and leaves every margin as it is (the
-tests hold this); only each drone's own error counts, within a horizontal radius h and a
-vertical half-height v, so margin j falls by at most (:func:`margin_bounds`)
+design.md section 5) are functions of the configuration, and the configuration of the
+three drones' positions A (the direct kinematics). To first order a drone error dA changes
+margin j by ``(dm_j / dA) dA``; the derivative is taken by central differences through the
+direct kinematics (:func:`margin_gradients`), which needs no parametrization of the
+platform's rotation (the tilt-torsion angles are singular upright). An error the three
+drones share moves the platform rigidly, under gravity alone, and leaves every margin as
+it is (the tests hold this); only each drone's own error counts, within a horizontal
+radius h and a vertical half-height v, so margin j falls by at most (:func:`margin_bounds`)
 
     sum_k (||(dm_j / dA_k)[:2]|| h + |(dm_j / dA_k)[2]| v).
 
 Assumptions as :mod:`flycrane.model.pose_error`'s: taut cables, errors small against the
 cables, and the drones' errors independent. The bound is of first order, and tight: the
-three drones' worst errors add exactly at the corners of their bounds, and there the
-second-order term takes the exact fall up to 14 % beyond it at 3 cm of error
-(``tests/flycrane/model/test_robust_statics.py``, against the exact direct kinematics and
-statics of sampled errors).
+three drones' worst errors add exactly at the corners of their bounds, where the
+second-order term can take the exact fall somewhat beyond it
+(``tests/flycrane/model/test_robust_statics.py`` holds it against the exact direct
+kinematics and statics of sampled errors; BENCHMARKS.md "Robust statics margins").
 """
 
 from __future__ import annotations
