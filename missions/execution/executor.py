@@ -330,9 +330,9 @@ class Executor(ABC):
             if stopping[0].kind in FOLLOWED:
                 self._leader = stopping[0].drone - 1
             elif weak and self.anchors:
-                k, clock = weak[0], self.clock
+                k = weak[0]
                 anchor = Anchor(self.vehicles[k], self.frames[k], self.trajectory.homes[k],
-                                partial(self.target, k), clock.tau, k, self.room)  # fmt: skip
+                                partial(self.target, k), self.clock.tau, k, self.room)  # fmt: skip
                 self._anchor = (k, anchor)
             logger.warning("team stop: %s", "; ".join(map(str, stopping)))
         for fault in faults:

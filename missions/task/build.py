@@ -114,12 +114,13 @@ def build(
     path: NDArray[np.float64],
     limits: PhaseLimits | None = None,
     robust_margin: float | None = None,
+    robust_statics: tuple[float, str] | None = None,
 ) -> BuiltMissions:
     """The missions of the planned ``path`` (M, 9). ``limits`` are checked between the
     phases and before every safety check of the long ones (the flight plan, the timing
     tolerance), so that a cancel or the time budget reaches the work wherever it is;
-    ``robust_margin``, the path's where measured, and its robust statics margin go to the
-    summary.
+    ``robust_margin``, the path's where measured, and its robust statics margin and
+    the margin it is (``robust_statics``, measured here unless given) go to the summary.
 
     Raises
     ------
@@ -161,7 +162,7 @@ def build(
     tolerance = timing_tolerance(system, dense, flight, stop.wrap(checkers.real.is_safe), options)
     stop.check()
     lat, lon, alt = geodetic_from_enu(flight.drones, options.origin)
-    statics, limit, _ = resolved.robust_statics(path).least()
+    statics, limit = robust_statics or resolved.robust_statics(path).least()[:2]
     summary = MissionSummary(
         waypoints=len(flight.time),
         duration=flight.duration,

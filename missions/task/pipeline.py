@@ -102,7 +102,7 @@ def run_task(
     planning_ends = time.monotonic() + task.planner.time_budget
     limits: PhaseLimits | None = None  # the making's budget, from the first path on
     attempts: list[dict[str, Any]] = []
-    seed, robust_margin, raises = task.planner.seed, None, 0
+    seed, robust_margin, statics = task.planner.seed, None, None
     while True:
         report("planning", None)
         options = task.planner.model_copy(
@@ -131,27 +131,26 @@ def run_task(
             if not result.status.solved:
                 cancelled = result.status.value == "cancelled"
                 reason = result.reason or result.status.value
-                if len(attempts) > raises:
-                    reason = f"{reason} (after {len(attempts) - raises} unflyable path(s))"
+                if given_up := _given_up(attempts):
+                    reason = f"{reason} (after {given_up} unflyable path(s))"
                 raise _Failed("cancelled" if cancelled else "failed", reason)
             if task.mission.robust_clearance:
                 robust_margin = resolved.robust.margin(planned.path, resolved.problem.space)
                 again = None
-                if robust_margin < 0 and raises < MAX_ROBUST_PLANS:
+                if robust_margin < 0 and len(attempts) - _given_up(attempts) < MAX_ROBUST_PLANS:
                     again = _raised(task, base_dir, resolved, robust_margin)
                 if again is not None and time.monotonic() < planning_ends:
                     resolved, clearance = again
                     attempts.append({"seed": seed, "clearance": clearance, "reason": (
                         f"robust margin {robust_margin:.3f} m: planned again keeping "
                         f"{clearance:.3f} m")})  # fmt: skip
-                    raises += 1
                     continue
-                statics, limit, _ = resolved.robust_statics(planned.path).least()
-                another = len(attempts) - raises + 1 < MAX_PLANS
-                if statics < 0 and another and time.monotonic() < planning_ends:
+                statics = resolved.robust_statics(planned.path).least()[:2]
+                another = _given_up(attempts) + 1 < MAX_PLANS
+                if statics[0] < 0 and another and time.monotonic() < planning_ends:
                     attempts.append({"seed": seed, "reason": (
-                        f"robust statics margin {statics:.3f} N ({limit}): planned again "
-                        "with the next seed")})  # fmt: skip
+                        f"robust statics margin {statics[0]:.3f} N ({statics[1]}): planned "
+                        "again with the next seed")})  # fmt: skip
                     seed = (seed + 1) % (MAX_SEED + 1)
                     continue
             report("generating", None)
@@ -162,10 +161,10 @@ def run_task(
             directory.write_path(planned.path, result.path)
             limits = limits or PhaseLimits.starting_now(should_stop, task.planner.time_budget)
             try:
-                built = build(resolved, planned.path, limits, robust_margin)
+                built = build(resolved, planned.path, limits, robust_margin, statics)
             except UnflyablePath as unflyable:
                 attempts.append({"seed": seed, "reason": str(unflyable)})
-                if len(attempts) - raises < MAX_PLANS and time.monotonic() < planning_ends:
+                if _given_up(attempts) < MAX_PLANS and time.monotonic() < planning_ends:
                     logger.info("seed %d: %s; planning again", seed, unflyable)
                     seed = (seed + 1) % (MAX_SEED + 1)
                     continue
@@ -188,6 +187,12 @@ def run_task(
     )
     logger.info("task done in %s: %d waypoints", directory.path, built.summary.waypoints)
     return directory.write_summary(done)
+
+
+def _given_up(attempts: list[dict[str, Any]]) -> int:
+    """How many of the task's paths were given up for another seed (not a raised
+    clearance)."""
+    return sum(not raised_clearance(a) for a in attempts)
 
 
 def _raised(

@@ -131,11 +131,11 @@ def test_a_path_whose_missions_fail_their_check_is_planned_again_with_the_next_s
     calls: list[int] = []
     real_build = pipeline.build
 
-    def failing_once(resolved, path, limits=None, robust_margin=None):  # type: ignore[no-untyped-def]
+    def failing_once(resolved, path, *robustness):  # type: ignore[no-untyped-def]
         calls.append(1)
         if len(calls) == 1:
             raise UnflyablePath("the modelled flight fails its check at 11.80 s")
-        return real_build(resolved, path, limits, robust_margin)
+        return real_build(resolved, path, *robustness)
 
     monkeypatch.setattr(pipeline, "build", failing_once)
     task = TaskSpec(scene="rescue", planner=PlannerOptions(seed=7),
@@ -184,7 +184,7 @@ def test_planning_again_stops_at_the_most_plans_and_says_which_seeds(
 ):
     import missions.task.pipeline as pipeline
 
-    def never(resolved, path, limits=None, robust_margin=None):  # type: ignore[no-untyped-def]
+    def never(resolved, path, *robustness):  # type: ignore[no-untyped-def]
         raise UnflyablePath("no flyable plan")
 
     monkeypatch.setattr(pipeline, "build", never)
