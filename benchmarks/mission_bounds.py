@@ -21,11 +21,12 @@ from pathlib import Path
 import numpy as np
 
 from flycrane.planning.planners import plan
-from missions.task.build import MissionFailure, build
+from missions.task.build import build
 from missions.task.directory import TaskDirectory
-from missions.task.pipeline import _write
+from missions.task.limits import MissionFailure
 from missions.task.resolve import resolve_task
 from missions.task.spec import TaskSpec
+from missions.task.write import write_files
 
 LEVEL = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
 
@@ -65,7 +66,7 @@ def measure(length: float) -> str:
     with tempfile.TemporaryDirectory() as scratch:
         directory = TaskDirectory(scratch).create()
         clock = time.perf_counter()
-        _write(directory, resolved, planned, built)
+        write_files(directory, resolved, planned, built)
         write_time = time.perf_counter() - clock
         _, write_peak = tracemalloc.get_traced_memory()
         tracks = (Path(scratch) / "tracks.json").stat().st_size

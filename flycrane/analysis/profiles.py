@@ -54,7 +54,8 @@ def path_profile(
 ) -> PathProfile:
     """Tensions and thrusts along a path split into ``steps`` equal parts."""
     fraction = np.linspace(0.0, 1.0, steps + 1)
-    report = evaluate_statics(system, configurations_at_fractions(path, space, fraction))
+    configurations = configurations_at_fractions(path, space, fraction)
+    report = evaluate_statics(system, configurations)
     return PathProfile(
         fraction=fraction,
         tension=report.nominal_tension,

@@ -137,11 +137,12 @@ class CompiledValidity:
                 space.sigma_high,
             ]
         )
+        kinematics = kinematic_arrays(system)
         compiled = CompiledScene.build(system, scene, base_dir)
         model = (
             bounds,
             statics_model(system, CostForm.NORMALIZED),
-            kinematic_arrays(system),
+            kinematics,
             compiled.arrays,
             np.array([space.rotation_weight, space.alpha_weight]),
         )

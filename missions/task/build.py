@@ -3,33 +3,30 @@
 The dense track and its time law (:mod:`missions.trajectory.tracks`), the flyable plan with
 its modelled flight (:mod:`missions.trajectory.flight_plan`), the per-waypoint annotations,
 the timing tolerance and the per-drone MAVLink missions. A path that cannot be made into
-missions that keep the load safe ends the task as failed (:class:`MissionFailure`), with
+missions that keep the load safe ends the task as failed (:class:`UnflyablePath`), with
 the reason.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from flycrane.errors import FlyCraneError
 from flycrane.model.kinematics import drone_positions_from_configuration
 from missions.export.builder import HOLD_SEQ, RELEASE_SEQ, build_missions
 from missions.export.items import DroneMission
 from missions.geodesy import geodetic_from_enu
 from missions.options import MAX_MISSION_DURATION_S
 from missions.task.directory import MissionSummary, Release, Tracks
+from missions.task.limits import MissionFailure, PhaseLimits
 from missions.task.resolve import ResolvedTask
 from missions.trajectory.annotations import Annotations, annotate
 from missions.trajectory.drone_trajectory import DroneTrajectory
 from missions.trajectory.flight_plan import FlightPlan, plan_flight
 from missions.trajectory.timing_tolerance import timing_tolerance
 from missions.trajectory.tracks import Track, least_duration, track_from_path
-from missions.trajectory.waypoints import SafetyCheck
 
 #: Most samples the checks of one mission may take (twice its duration over
 #: ``mission.check_resolution``: the timing tolerance flies the plan for up to twice its
@@ -38,53 +35,9 @@ from missions.trajectory.waypoints import SafetyCheck
 MAX_CHECK_SAMPLES = 200_000
 
 
-class MissionFailure(FlyCraneError):
-    """The path cannot be made into missions that keep the load safe; the message says
-    why."""
-
-
 class UnflyablePath(MissionFailure):
     """No flyable plan of this path keeps the load safe (another path may: the pipeline
     plans again)."""
-
-
-class Cancelled(FlyCraneError):
-    """The task was cancelled while its missions were built or written."""
-
-
-@dataclass(frozen=True)
-class PhaseLimits:
-    """What stops the mission phases: a cancel (``should_stop``, None: never) or the end of
-    their time budget (``deadline`` on :func:`time.monotonic`, None: none; ``budget`` [s]
-    for the message)."""
-
-    should_stop: Callable[[], bool] | None = None
-    deadline: float | None = None
-    budget: float = 0.0
-
-    @classmethod
-    def starting_now(cls, should_stop: Callable[[], bool] | None, budget: float) -> PhaseLimits:
-        return cls(should_stop, time.monotonic() + budget, budget)
-
-    def check(self, during: str = "its missions were built") -> None:
-        """Raises :class:`Cancelled` if the task is to stop, :class:`MissionFailure` past
-        the deadline."""
-        if self.should_stop is not None and self.should_stop():
-            raise Cancelled(f"cancelled while {during}")
-        if self.deadline is not None and time.monotonic() > self.deadline:
-            raise MissionFailure(
-                f"it took longer than its time budget, {self.budget:g} s "
-                "(planner.time_budget bounds the planning and, again, the missions' making)"
-            )
-
-    def wrap(self, check: SafetyCheck) -> SafetyCheck:
-        """``check``, asking first."""
-
-        def checked(q: NDArray[np.float64]) -> NDArray[np.bool_]:
-            self.check()
-            return check(q)
-
-        return checked
 
 
 def _check_duration(duration: float, bound: str) -> None:
@@ -120,7 +73,7 @@ def build(
     phases and before every safety check of the long ones (the flight plan, the timing
     tolerance), so that a cancel or the time budget reaches the work wherever it is;
     ``robust_margin``, the path's where measured, and its robust statics margin and
-    the margin it is (``robust_statics``, measured here unless given) go to the summary.
+    the margin it is (``robust_statics``, where measured) go to the summary.
 
     Raises
     ------
@@ -162,7 +115,7 @@ def build(
     tolerance = timing_tolerance(system, dense, flight, stop.wrap(checkers.real.is_safe), options)
     stop.check()
     lat, lon, alt = geodetic_from_enu(flight.drones, options.origin)
-    statics, limit = robust_statics or resolved.robust_statics(path).least()[:2]
+    statics, limit = robust_statics or (None, None)
     summary = MissionSummary(
         waypoints=len(flight.time),
         duration=flight.duration,

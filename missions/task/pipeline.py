@@ -17,50 +17,24 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Literal
 
-from flycrane.analysis.profiles import path_profile, plot_path_profile
 from flycrane.errors import InputError
-from flycrane.planning.planners import PlanningOutcome, plan
+from flycrane.planning.planners import plan
 from flycrane.planning.result import PlanningProgress
 from flycrane.planning.validity import InvalidConfigurationError
 from flycrane.quantities import MAX_SEED
-from missions.autopilots.ardupilot import team_parameters
-from missions.export.formats import mission_files
-from missions.export.mission_mcap import LogInputs, write_mcap
-from missions.export.parameter_file import parameter_file_text
-from missions.export.trajectory_file import trajectory_text
-from missions.geodesy import geodetic_from_enu
-from missions.task.build import (
-    BuiltMissions,
-    Cancelled,
-    MissionFailure,
-    PhaseLimits,
-    UnflyablePath,
-    build,
-)
-from missions.task.directory import (
-    MCAP_FILE,
-    PROFILE_FILE,
-    Status,
-    TaskDirectory,
-    TaskOutcome,
-    mission_file,
-    raised_clearance,
-)
+from missions.task.build import UnflyablePath, build
+from missions.task.directory import Status, TaskDirectory, TaskOutcome, raised_clearance
+from missions.task.limits import Cancelled, MissionFailure, PhaseLimits
 from missions.task.resolve import ResolvedTask, resolve_task
 from missions.task.spec import TaskSpec
+from missions.task.write import write_files
 
 logger = logging.getLogger(__name__)
 
 Stage = Literal["planning", "generating"]
-
-#: The head of every exported ``.parm`` file.
-PARM_HEADER = """FlyCrane: parameters every drone of this mission must have (ArduCopter 4.5).
-Load them before the flight; the upload reads them back and reports any that differ.
-Never change BARO_GND_TEMP on a powered vehicle: its altitude estimate jumps."""
 
 
 class _Failed(Exception):
@@ -145,14 +119,14 @@ def run_task(
                         f"robust margin {robust_margin:.3f} m: planned again keeping "
                         f"{clearance:.3f} m")})  # fmt: skip
                     continue
-                statics = resolved.robust_statics(planned.path).least()[:2]
-                another = _given_up(attempts) + 1 < MAX_PLANS
-                if statics[0] < 0 and another and time.monotonic() < planning_ends:
-                    attempts.append({"seed": seed, "reason": (
-                        f"robust statics margin {statics[0]:.3f} N ({statics[1]}): planned "
-                        "again with the next seed")})  # fmt: skip
-                    seed = (seed + 1) % (MAX_SEED + 1)
-                    continue
+            statics = resolved.robust_statics(planned.path).least()[:2]
+            another = _given_up(attempts) + 1 < MAX_PLANS and time.monotonic() < planning_ends
+            if task.mission.robust_clearance and statics[0] < 0 and another:
+                attempts.append({"seed": seed, "reason": (
+                    f"robust statics margin {statics[0]:.3f} N ({statics[1]}): planned "
+                    "again with the next seed")})  # fmt: skip
+                seed = (seed + 1) % (MAX_SEED + 1)
+                continue
             report("generating", None)
             outcome = TaskOutcome(**{**outcome.__dict__, "metrics": planned.metrics})
             used = resolved.self_contained()
@@ -171,7 +145,7 @@ def run_task(
                 tried = ", ".join(str(a["seed"]) for a in attempts if not raised_clearance(a))
                 reason = f"mission generation: {unflyable} (seeds tried: {tried})"
                 raise _Failed("failed", reason) from None
-            _write(directory, resolved, planned, built, limits)
+            write_files(directory, resolved, planned, built, limits)
         except (_Failed, MissionFailure, Cancelled) as failure:
             status, reason = _ending(failure)
             return directory.write_summary(_failure(directory, outcome, status, reason, attempts))
@@ -236,87 +210,3 @@ def _failure(
             "attempts": tuple(attempts),
         }
     )
-
-
-def _write(
-    directory: TaskDirectory,
-    resolved: ResolvedTask,
-    planned: PlanningOutcome,
-    built: BuiltMissions,
-    limits: PhaseLimits | None = None,
-) -> None:
-    """The writing phase: tracks, each drone's mission files, the MCAP log, the plot;
-    ``limits`` are checked between them.
-
-    Raises
-    ------
-    Cancelled, MissionFailure
-        A cancel, or past the deadline (:class:`~missions.task.build.PhaseLimits`).
-    """
-    given = limits or PhaseLimits()
-
-    def check() -> None:
-        given.check("its files were written")
-
-    task, problem = resolved.task, resolved.problem
-    options, system = task.mission, problem.system
-    directory.write_tracks(built.tracks)
-    check()
-    settings = built.flight.settings
-    team, why = team_parameters(resolved.position_error.height_source)
-    parameters, reasons = {**settings.parameters(), **team}, {**settings.reasons(), **why}
-    parm = parameter_file_text(parameters, reasons, PARM_HEADER)
-    trajectory = built.trajectory
-    homes = geodetic_from_enu(trajectory.homes, options.origin)
-    for mission in built.missions:
-        k = mission.drone - 1
-        files = {**mission_files(mission, options.max_drone_speed), "parm": parm}
-        files["trajectory.csv"] = trajectory_text(
-            mission.drone,
-            trajectory.time,
-            trajectory.position[:, k],
-            trajectory.velocity[:, k],
-            trajectory.acceleration[:, k],
-            (float(homes[0][k]), float(homes[1][k]), float(homes[2][k])),
-            task.name,
-            trajectory.set_down_start,
-        )
-        for suffix, text in files.items():
-            directory.write_text(mission_file(mission.drone, suffix), text)
-    check()
-    start = options.start_time_utc or datetime.now(UTC)
-    result = planned.result
-    write_mcap(
-        directory.file(MCAP_FILE),
-        LogInputs(
-            system=system,
-            scene=problem.scene,
-            track=built.track,
-            annotations=built.annotations,
-            missions=list(built.missions),
-            options=options,
-            start_ns=int(start.timestamp() * 1e9),
-            metadata={
-                "system": system.spec.model_dump(mode="json"),
-                "scene": problem.scene.model_dump(mode="json"),
-                "planner": {
-                    "planner_status": result.status.value,
-                    "planner_statistics": {
-                        **result.statistics.as_dict(),
-                        "smoothing_time": planned.smoothing_time,
-                    },
-                },
-                "mission": built.summary.as_dict(),
-            },
-        ),
-    )
-    directory.record(MCAP_FILE, "mcap")
-    check()
-    profile = path_profile(system, problem.space, planned.path)
-    plot_path_profile(
-        profile,
-        system,
-        directory.file(PROFILE_FILE),
-        title=f"{task.name or problem.scene.name}: tensions and thrusts",
-    )
-    directory.record(PROFILE_FILE, "profile")
