@@ -1,6 +1,6 @@
-"""What bounds a task's phases: a cancel and the time budget, checked between and inside
-the phases of mission building and writing (:mod:`missions.task.build`,
-:mod:`missions.task.write`)."""
+"""What bounds and ends a task's phases: a cancel and the time budget, checked between and
+inside the phases of mission building and writing (:mod:`missions.task.build`,
+:mod:`missions.task.write`), and the status and reason each ending gives the task."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.errors import FlyCraneError
+from missions.task.directory import Status
 from missions.trajectory.waypoints import SafetyCheck
 
 
@@ -57,3 +58,19 @@ class PhaseLimits:
             return check(q)
 
         return checked
+
+
+class TaskEnded(Exception):
+    """A phase ended the task: its status and reason."""
+
+    def __init__(self, status: Status, reason: str) -> None:
+        self.status, self.reason = status, reason
+
+
+def ending(failure: TaskEnded | MissionFailure | Cancelled) -> tuple[Status, str]:
+    """Status and reason of what ended a task before its files were all written."""
+    if isinstance(failure, TaskEnded):
+        return failure.status, failure.reason
+    if isinstance(failure, Cancelled):
+        return "cancelled", str(failure)
+    return "failed", f"mission generation: {failure}"

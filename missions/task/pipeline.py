@@ -20,28 +20,19 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Literal
 
-from flycrane.errors import InputError
 from flycrane.planning.planners import plan
 from flycrane.planning.result import PlanningProgress
-from flycrane.planning.validity import InvalidConfigurationError
 from flycrane.quantities import MAX_SEED
 from missions.task.build import UnflyablePath, build
 from missions.task.directory import Status, TaskDirectory, TaskOutcome, raised_clearance
-from missions.task.limits import Cancelled, MissionFailure, PhaseLimits
-from missions.task.resolve import ResolvedTask, resolve_task
+from missions.task.limits import Cancelled, MissionFailure, PhaseLimits, TaskEnded, ending
+from missions.task.resolve import ResolvedTask, resolve_raised, resolve_task
 from missions.task.spec import TaskSpec
 from missions.task.write import write_files
 
 logger = logging.getLogger(__name__)
 
 Stage = Literal["planning", "generating"]
-
-
-class _Failed(Exception):
-    """A phase ended the task: its status and reason."""
-
-    def __init__(self, status: Status, reason: str) -> None:
-        self.status, self.reason = status, reason
 
 
 #: Most plans a task tries when the mission made of a path fails its check.
@@ -107,12 +98,12 @@ def run_task(
                 reason = result.reason or result.status.value
                 if given_up := _given_up(attempts):
                     reason = f"{reason} (after {given_up} unflyable path(s))"
-                raise _Failed("cancelled" if cancelled else "failed", reason)
+                raise TaskEnded("cancelled" if cancelled else "failed", reason)
             if task.mission.robust_clearance:
                 robust_margin = resolved.robust.margin(planned.path, resolved.problem.space)
                 again = None
                 if robust_margin < 0 and len(attempts) - _given_up(attempts) < MAX_ROBUST_PLANS:
-                    again = _raised(task, base_dir, resolved, robust_margin)
+                    again = resolve_raised(task, base_dir, resolved, robust_margin, ROBUST_STEP)
                 if again is not None and time.monotonic() < planning_ends:
                     resolved, clearance = again
                     attempts.append({"seed": seed, "clearance": clearance, "reason": (
@@ -144,10 +135,10 @@ def run_task(
                     continue
                 tried = ", ".join(str(a["seed"]) for a in attempts if not raised_clearance(a))
                 reason = f"mission generation: {unflyable} (seeds tried: {tried})"
-                raise _Failed("failed", reason) from None
+                raise TaskEnded("failed", reason) from None
             write_files(directory, resolved, planned, built, limits)
-        except (_Failed, MissionFailure, Cancelled) as failure:
-            status, reason = _ending(failure)
+        except (TaskEnded, MissionFailure, Cancelled) as failure:
+            status, reason = ending(failure)
             return directory.write_summary(_failure(directory, outcome, status, reason, attempts))
         break
     done = TaskOutcome(
@@ -167,30 +158,6 @@ def _given_up(attempts: list[dict[str, Any]]) -> int:
     """How many of the task's paths were given up for another seed (not a raised
     clearance)."""
     return sum(not raised_clearance(a) for a in attempts)
-
-
-def _raised(
-    task: TaskSpec, base_dir: Path | None, resolved: ResolvedTask, margin: float
-) -> tuple[ResolvedTask, float] | None:
-    """The task resolved keeping :data:`ROBUST_STEP` more clearance than a path whose
-    robust ``margin`` [m] fell short, and that clearance; None where the ends do not keep
-    it."""
-    kept = resolved.problem.scene.collision.obstacle_clearance
-    clearance = round(kept - margin + ROBUST_STEP, 3)
-    try:
-        return resolve_task(task, base_dir, clearance), clearance
-    except (InputError, InvalidConfigurationError) as error:
-        logger.info("robust margin %.3f m; %.3f m refused: %s", margin, clearance, error)
-        return None
-
-
-def _ending(failure: Exception) -> tuple[Status, str]:
-    """Status and reason of what ended a task before its files were all written."""
-    if isinstance(failure, _Failed):
-        return failure.status, failure.reason
-    if isinstance(failure, Cancelled):
-        return "cancelled", str(failure)
-    return "failed", f"mission generation: {failure}"
 
 
 def _failure(

@@ -8,6 +8,7 @@ task's run needs more than once is resolved here once.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -25,13 +26,15 @@ from flycrane.planning.planners import Algorithm
 from flycrane.planning.poses import configuration_from_pose
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.robust_clearance import RobustClearance
-from flycrane.planning.validity import ValidityChecker
+from flycrane.planning.validity import InvalidConfigurationError, ValidityChecker
 from flycrane.world.scene import SceneSpec, load_scene
 from missions.options import MAX_MISSION_DURATION_S
 from missions.position_error import PositionErrorModel, position_error_model
 from missions.task.spec import PlatformPose, TaskSpec
 from missions.trajectory.tracks import least_duration
 from missions.trajectory.vertical_legs import VerticalLeg, clear_end, hold_height
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -184,3 +187,17 @@ def resolve_task(
         task, problem, algorithm, checkers, ends[0], ends[1], model, lift_off=legs[0],
         set_down=legs[1],
     )  # fmt: skip
+
+
+def resolve_raised(
+    task: TaskSpec, base_dir: Path | None, resolved: ResolvedTask, margin: float, step: float
+) -> tuple[ResolvedTask, float] | None:
+    """The task resolved keeping ``step`` [m] more clearance than a path whose robust
+    ``margin`` [m] fell short, and that clearance; None where the ends do not keep it."""
+    kept = resolved.problem.scene.collision.obstacle_clearance
+    clearance = round(kept - margin + step, 3)
+    try:
+        return resolve_task(task, base_dir, clearance), clearance
+    except (InputError, InvalidConfigurationError) as error:
+        logger.info("robust margin %.3f m; %.3f m refused: %s", margin, clearance, error)
+        return None
