@@ -7,13 +7,17 @@ from its stop before it comes back. Braked at their own stops, the other two let
 cables go slack or the platform tilt past its bound (BENCHMARKS.md "A weak motor").
 
 Where the ground flies the drones (the stream executor) it moves the other two with it,
-as little as keeps the load safe: every :data:`ROOM_PERIOD_S` the faulty drone's
-deviation from its target is carried :data:`PREDICTION_S` ahead with its velocity, and
-the others' targets move by the least fraction of it (0, 1/4, ... 1;
-:class:`FormationRoom`) at which the load, rebuilt by the direct kinematics with the
-faulty drone off by the whole deviation, is feasible and keeps the plan's clearance from
-the real obstacles. Where none is, they move by the largest fraction at which the
-formation, translated as a whole, keeps that clearance.
+as little as keeps the load safe with room to spare: every :data:`ROOM_PERIOD_S` the
+faulty drone's deviation from its target is carried :data:`PREDICTION_S` ahead with its
+velocity and the acceleration its lean gives it, and the others' targets move by the
+least fraction of it (0, 1/4, ... 1; :class:`FormationRoom`) at which the load, rebuilt by
+the direct kinematics with the faulty drone off by the whole deviation, is feasible with
+every statics margin at least :data:`ROOM_MARGIN_N` (or the plan's own there, if less) and
+keeps the plan's clearance from the real obstacles; where no fraction keeps that margin,
+the feasible and clear one with the largest; where none is feasible, the largest at which
+the formation, translated as a whole, keeps that clearance. The faulty drone's velocity and
+lean acceleration, beyond its target's, are fed forward by the same fraction: the others
+start moving with it before its deviation shows.
 
 Moving them by the whole deviation always (tried first) kept the Puzzle's load but took
 healthy drones into the Rescue's buildings. Beyond :data:`LIMIT` the drone is not swinging
@@ -32,6 +36,8 @@ from numpy.typing import NDArray
 
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.direct_kinematics import configuration_from_drone_positions
+from flycrane.model.robust_statics import margins
+from flycrane.model.statics import evaluate_statics
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import ValidityChecker
 from missions.execution.vehicles import VehicleFrame, VehicleState
@@ -50,6 +56,12 @@ ROOM_PERIOD_S = 0.1
 #: check: about what the others' controllers take to follow a target, and the check's
 #: period.
 PREDICTION_S = 0.5
+#: The least statics margin [N] (slack, overload, thrust) the others keep the load at
+#: while they follow (the plan's own where it has less).
+ROOM_MARGIN_N = 0.5
+
+#: The horizontal components of an ENU vector (the lean gives no vertical acceleration).
+HORIZONTAL = np.array([1.0, 1.0, 0.0])
 
 Target = Callable[[float], tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]]
 
@@ -77,8 +89,9 @@ class FormationRoom:
         """How much of ``shift`` [m, ENU], drone ``weak``'s (0-based) deviation, the other
         two follow at plan time ``tau`` (module docstring): the least of :data:`FRACTIONS`
         and 0 at which the load is safe (feasible and clear) with drone ``weak`` off by the
-        whole shift; where none is, the largest at which the formation translated as a
-        whole is clear; 0 if none is."""
+        whole shift and keeps :data:`ROOM_MARGIN_N`; where none keeps it, the safe one
+        with the largest margin; where none is safe, the largest at which the formation
+        translated as a whole is clear; 0 if none is."""
         drones = self.trajectory.in_task_frame(self.trajectory.at(tau)[0])
         q = configuration_from_drone_positions(self.system, drones).q
         fractions = (0.0, *FRACTIONS[::-1])
@@ -89,7 +102,10 @@ class FormationRoom:
         )
         safe = solved.converged & self.checker.is_safe(solved.q)
         if safe.any():
-            return fractions[int(np.argmax(safe))]
+            least = margins(evaluate_statics(self.system, np.vstack([q, solved.q]))).min(axis=1)
+            kept = np.where(safe, least[1:], -np.inf)
+            enough = kept >= min(ROOM_MARGIN_N, float(least[0]))
+            return fractions[int(np.argmax(enough) if enough.any() else np.argmax(kept))]
         translated = np.repeat(q, len(FRACTIONS), axis=0)
         translated[:, :3] += np.outer(FRACTIONS, shift)
         clear = self.checker.is_safe(translated)
@@ -110,30 +126,37 @@ class Anchor:
     #: (common time, fraction) of the last room check
     checked: tuple[float, float] = (-float("inf"), 0.0)
 
-    def shift(self, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(position, velocity) the others' targets move by at common time ``t`` (ENU)."""
+    def shift(self, t: float) -> tuple[NDArray, NDArray, NDArray]:
+        """(position, velocity, acceleration) the others' targets move by at common time
+        ``t`` (ENU)."""
         estimate, velocity = self.vehicle.estimate(), self.vehicle.velocity_estimate()
-        if estimate is None or velocity is None:
-            return np.zeros(3), np.zeros(3)
+        lean = self.vehicle.lean_acceleration()
+        if estimate is None or velocity is None or lean is None:
+            return np.zeros(3), np.zeros(3), np.zeros(3)
         at, ned = estimate
-        p, v, _ = self.target(at)
+        p, v, a = self.target(at)
         drift = enu_from_ned(velocity) - v
+        push = enu_from_ned(lean) - a * HORIZONTAL
         deviation = self.frame.task_position(ned) - (p + self.home) + drift * (t - at)
         length = float(np.linalg.norm(deviation))
         if length > LIMIT:
-            deviation, drift = deviation * (LIMIT / length), np.zeros(3)
-        fraction = self._fraction(t, deviation, drift)
-        return deviation * fraction, drift * fraction
+            deviation, drift, push = deviation * (LIMIT / length), np.zeros(3), np.zeros(3)
+        fraction = self._fraction(t, deviation, drift, push)
+        return deviation * fraction, drift * fraction, push * fraction
 
     def _fraction(
-        self, t: float, deviation: NDArray[np.float64], drift: NDArray[np.float64]
+        self,
+        t: float,
+        deviation: NDArray[np.float64],
+        drift: NDArray[np.float64],
+        push: NDArray[np.float64],
     ) -> float:
         """The room's fraction for the deviation :data:`PREDICTION_S` ahead, checked every
         :data:`ROOM_PERIOD_S`."""
         if self.room is None:
             return 1.0
         if t - self.checked[0] >= ROOM_PERIOD_S:
-            ahead = deviation + drift * PREDICTION_S
+            ahead = deviation + drift * PREDICTION_S + push * (PREDICTION_S**2 / 2.0)
             ahead *= min(1.0, LIMIT / max(float(np.linalg.norm(ahead)), 1e-9))
             self.checked = (t, self.room(self.tau(t), ahead, self.drone))
         return self.checked[1]

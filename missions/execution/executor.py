@@ -241,13 +241,14 @@ class Executor(ABC):
             p, v, a = self.trajectory.at(0.0)
             return p[k], v[k] * 0.0, a[k] * 0.0
         p, v, a = self.target(k, t)
-        dp, dv = self._shift(k, t)
-        return p + dp, v + dv, a
+        dp, dv, da = self._shift(k, t)
+        return p + dp, v + dv, a + da
 
-    def _shift(self, k: int, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """How far drone k's target moves with a faulty drone (:mod:`.anchor`)."""
+    def _shift(self, k: int, t: float) -> tuple[NDArray, NDArray, NDArray]:
+        """How far drone k's target (position, velocity, acceleration) moves with a faulty
+        drone (:mod:`.anchor`)."""
         if self._anchor is None or self._anchor[0] == k:
-            return np.zeros(3), np.zeros(3)
+            return np.zeros(3), np.zeros(3), np.zeros(3)
         return self._anchor[1].shift(t)
 
     def _errors(

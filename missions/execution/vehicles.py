@@ -75,6 +75,9 @@ class VehicleFrame:
         return np.stack([east, north, up], axis=-1)
 
 
+GRAVITY = 9.80665  #: standard gravity [m/s^2]
+
+
 class VehicleState:
     """One vehicle's clock, frame and latest telemetry (module docstring), fed by its
     link's reader thread; read from any thread."""
@@ -93,6 +96,7 @@ class VehicleState:
         #: roll, pitch its attitude controller asks for [deg] (ArduCopter reports them in
         #: NAV_CONTROLLER_OUTPUT)
         self.attitude_target: tuple[float, float] | None = None
+        self.yaw = 0.0  #: [rad] from north
         self.position: tuple[float, NDArray[np.float64]] | None = None  #: (boot s, NED)
         self.velocity: NDArray[np.float64] | None = None  #: NED [m/s], of ``position``
         self.home_down: float | None = None
@@ -126,6 +130,7 @@ class VehicleState:
                 self.fix_type = msg.fix_type
             elif kind == "ATTITUDE":
                 self.attitude = (math.degrees(msg.roll), math.degrees(msg.pitch))
+                self.yaw = float(msg.yaw)
             elif kind == "NAV_CONTROLLER_OUTPUT":
                 self.attitude_target = (float(msg.nav_roll), float(msg.nav_pitch))
             elif kind == "EKF_STATUS_REPORT":
@@ -162,6 +167,21 @@ class VehicleState:
                 return None
             (roll, pitch), (roll_target, pitch_target) = self.attitude, self.attitude_target
         return math.hypot(roll - roll_target, pitch - pitch_target)
+
+    def lean_acceleration(self) -> NDArray[np.float64] | None:
+        """The horizontal acceleration [m/s^2, NED, down 0] the vehicle's lean gives it
+        while its thrust holds its weight (drag neglected): where a drone that has lost
+        authority is going before its velocity shows it."""
+        with self._lock:
+            if self.attitude is None:
+                return None
+            roll, pitch = (math.radians(angle) for angle in self.attitude)
+            yaw = self.yaw
+        # the thrust axis (body z) in NED, for ZYX Euler angles
+        north = math.cos(roll) * math.sin(pitch) * math.cos(yaw) + math.sin(roll) * math.sin(yaw)
+        east = math.cos(roll) * math.sin(pitch) * math.sin(yaw) - math.sin(roll) * math.cos(yaw)
+        down = math.cos(roll) * math.cos(pitch)
+        return -GRAVITY * np.array([north, east, 0.0]) / down
 
     def last_heard(self) -> float | None:
         """Common time of the newest stamped message: when the vehicle was last heard, on

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from missions.execution.vehicles import VehicleState
@@ -51,7 +52,27 @@ def test_the_attitude_error_is_the_tilt_from_what_the_controller_asks_for():
     sqrt(6^2 + 4^2) deg, whatever the lean both share."""
     state = VehicleState(Link(), speedup=1.0, max_extrapolation=0.1)
     assert state.attitude_error() is None
-    heard(state, "ATTITUDE", time_boot_ms=1000, roll=math.radians(8.0), pitch=math.radians(1.0))
+    heard(state, "ATTITUDE", time_boot_ms=1000, roll=math.radians(8.0), pitch=math.radians(1.0),
+          yaw=0.0)  # fmt: skip
     assert state.attitude_error() is None  # nothing asked for yet
     heard(state, "NAV_CONTROLLER_OUTPUT", nav_roll=2.0, nav_pitch=-3.0)
     assert state.attitude_error() == pytest.approx(math.hypot(6.0, 4.0))
+
+
+@pytest.mark.parametrize(
+    ("roll", "pitch", "yaw", "north", "east"),
+    [
+        (10.0, 0.0, 0.0, 0.0, 1.0),  # facing north, rolled right: east
+        (0.0, 10.0, 0.0, -1.0, 0.0),  # facing north, nose up: south
+        (10.0, 0.0, 90.0, -1.0, 0.0),  # facing east, rolled right: south
+    ],
+)
+def test_the_lean_accelerates_the_drone_along_its_tilt(roll, pitch, yaw, north, east):
+    """A lean of 10 deg with the thrust holding the weight: g tan(10 deg) horizontally,
+    towards the side the thrust axis leans to."""
+    state = VehicleState(Link(), speedup=1.0, max_extrapolation=0.1)
+    assert state.lean_acceleration() is None
+    heard(state, "ATTITUDE", time_boot_ms=1000, roll=math.radians(roll),
+          pitch=math.radians(pitch), yaw=math.radians(yaw))  # fmt: skip
+    expected = 9.80665 * math.tan(math.radians(10.0)) * np.array([north, east, 0.0])
+    assert state.lean_acceleration() == pytest.approx(expected, abs=1e-12)

@@ -106,14 +106,15 @@ def test_a_weak_motor_is_seen_by_its_attitude_and_the_team_stops_safely(
 def test_a_weak_motor_whose_drone_swings_away_is_followed_as_far_as_keeps_the_load_safe(
     tmp_path: Path,
 ):
-    """The Puzzle's seed 9, drone 3's motor at 0.8 of its thrust by the slab: the drone
-    swings half a metre east of its stop. Braked where they were, the other two left the
-    load tilted past its bound with a cable slack (BENCHMARKS.md "A weak motor"); moved
-    with it as far as keeps the load safe, they follow it by more than 0.3 m and the load
-    stays safe (true positions)."""
-    task_dir = plan("puzzle", 9, tmp_path / "plan")
+    """The Puzzle's seed 5, drone 3's motor at 0.8 of its thrust: the drone swings half
+    a metre east of its stop. Braked where they were, or moved only as far as kept the
+    load feasible, the other two let a cable go slack (5 of 5 runs, BENCHMARKS.md "A weak
+    motor"); moved with it as far as keeps the load safe with room to spare and pushed by
+    its lean, they follow it by more than 0.3 m and the load stays safe (true
+    positions)."""
+    task_dir = plan("puzzle", 5, tmp_path / "plan")
     out = tmp_path / "flight"
-    report = fly(task_dir, out, "--mode", "stream", "--fault", "motor:3:8.1:0.8")
+    report = fly(task_dir, out, "--mode", "stream", "--fault", "motor:3:8.6:0.8")
     assert report["verdict"]["safe"], report["verdict"]["reasons"]
     assert (execution(out)["faults"][0]["kind"], execution(out)["faults"][0]["drone"]) == (
         "attitude",
