@@ -73,7 +73,7 @@ def build(
     phases and before every safety check of the long ones (the flight plan, the timing
     tolerance), so that a cancel or the time budget reaches the work wherever it is;
     ``robust_margin``, the path's where measured, and its robust statics margin and
-    the margin it is (``robust_statics``, where measured) go to the summary.
+    the margin it is (``robust_statics``, measured here unless given) go to the summary.
 
     Raises
     ------
@@ -115,7 +115,8 @@ def build(
     tolerance = timing_tolerance(system, dense, flight, stop.wrap(checkers.real.is_safe), options)
     stop.check()
     lat, lon, alt = geodetic_from_enu(flight.drones, options.origin)
-    statics, limit = robust_statics or (None, None)
+    # measured here, after the checks that bound the work, unless the pipeline has
+    statics, limit = robust_statics or resolved.robust_statics(path).least()[:2]
     summary = MissionSummary(
         waypoints=len(flight.time),
         duration=flight.duration,

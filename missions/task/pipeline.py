@@ -110,14 +110,14 @@ def run_task(
                         f"robust margin {robust_margin:.3f} m: planned again keeping "
                         f"{clearance:.3f} m")})  # fmt: skip
                     continue
-            statics = resolved.robust_statics(planned.path).least()[:2]
-            another = _given_up(attempts) + 1 < MAX_PLANS and time.monotonic() < planning_ends
-            if task.mission.robust_clearance and statics[0] < 0 and another:
-                attempts.append({"seed": seed, "reason": (
-                    f"robust statics margin {statics[0]:.3f} N ({statics[1]}): planned "
-                    "again with the next seed")})  # fmt: skip
-                seed = (seed + 1) % (MAX_SEED + 1)
-                continue
+                statics = resolved.robust_statics(planned.path).least()[:2]
+                another = _given_up(attempts) + 1 < MAX_PLANS
+                if statics[0] < 0 and another and time.monotonic() < planning_ends:
+                    attempts.append({"seed": seed, "reason": (
+                        f"robust statics margin {statics[0]:.3f} N ({statics[1]}): planned "
+                        "again with the next seed")})  # fmt: skip
+                    seed = (seed + 1) % (MAX_SEED + 1)
+                    continue
             report("generating", None)
             outcome = TaskOutcome(**{**outcome.__dict__, "metrics": planned.metrics})
             used = resolved.self_contained()
