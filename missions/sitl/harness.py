@@ -6,8 +6,7 @@ missions"), with the simulator's own additions marked:
 1. start three simulators homed on the ground below each drone's start (seq 0 of its
    mission), their clocks from one epoch (``--start-time``) [SITL];
 2. connect, ask for GLOBAL_POSITION_INT, MISSION_CURRENT, SYSTEM_TIME and, from SITL,
-   SIM_STATE (the simulator's true position), and wait for every vehicle's position
-   estimate (EKF_STATUS_REPORT);
+   SIM_STATE (the simulator's true position), and wait for every vehicle's estimate;
 3. set the parameters of the plan (``drone{k}.parm``), each confirmed, plus ARMING_CHECK
    0 [SITL: no RC] (a test may set wrong ones on purpose);
 4. upload each mission with read-back verification (``onboard``: the player's mission,
@@ -140,11 +139,11 @@ class FlightPlanFiles:
     model: PositionErrorModel
     origin: GeodeticOrigin
     home_height: float
-    room: FormationRoom  #: where the formation may move with a faulty drone (stream)
+    room: FormationRoom | None  #: where a faulty drone's followers may go (stream only)
 
     @classmethod
-    def read(cls, task_dir: Path) -> FlightPlanFiles:
-        """From a task's directory (:class:`~missions.task.directory.TaskDirectory`).
+    def read(cls, task_dir: Path, mode: Mode = "stream") -> FlightPlanFiles:
+        """For a flight in ``mode``, from a task's directory (:class:`TaskDirectory`).
 
         Raises
         ------
@@ -152,11 +151,12 @@ class FlightPlanFiles:
             A file the flight needs is missing or unreadable.
         """
         directory = TaskDirectory(task_dir)
-        missions = directory.missions()
-        summary = directory.mission_summary()
-        task = directory.task()
-        options = task.mission
+        missions, summary = directory.missions(), directory.mission_summary()
+        options = (task := directory.task()).mission
         model, trajectory = position_error_model(options.position_error), directory.trajectory()
+        room = None  # built before the flight: its first check loads the compiled checker
+        if mode == "stream":
+            room = FormationRoom.of_task(task, task_dir, trajectory, model.obstacle_clearance)
         return cls(
             missions=tuple(missions),
             parameters=tuple(directory.parameters()),
@@ -168,7 +168,7 @@ class FlightPlanFiles:
             model=model,
             origin=options.origin,
             home_height=options.home_height,
-            room=FormationRoom.of_task(task, task_dir, trajectory, model.obstacle_clearance),
+            room=room,
         )
 
     def for_mode(self, mode: Mode) -> tuple[tuple[DroneMission, ...], int]:
@@ -221,7 +221,7 @@ def fly_on_sitl(
     settings = settings or SitlSettings()
     options = options or SitlFlightOptions()
     task_dir, out_dir = task_dir.resolve(), out_dir.resolve()
-    plan = FlightPlanFiles.read(task_dir)
+    plan = FlightPlanFiles.read(task_dir, options.mode)
     out_dir.mkdir(parents=True, exist_ok=True)
     policy = _policy(settings)
     names = [f"drone{k}" for k in (1, 2, 3)]
