@@ -308,6 +308,7 @@ class Executor(ABC):
                 heard = min(heard, t - silent)
                 self.monitor.heard(k, heard)
                 stale |= t - heard > STALE_S
+                self.record.silences[k] = max(self.record.silences[k], t - heard)
             self.monitor.observe(
                 k,
                 mode=vehicle.mode,

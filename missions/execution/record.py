@@ -25,6 +25,9 @@ class ExecutionRecord:
     commanded_stop_at: float | None = None  #: when the team stop went out [common s]
     stopped_at: float | None = None  #: when the clock's rate reached 0 after it
     offsets: list[float] = field(default_factory=list)  #: per drone, common - boot [s]
+    #: per drone, the longest it went unheard while its link counted [s of common time]:
+    #: what a ``link_timeout`` must stay above on this link and host
+    silences: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     frames: list[dict[str, float]] = field(default_factory=list)
     ticks: int = 0
 
