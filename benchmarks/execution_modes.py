@@ -11,7 +11,9 @@ Each (scene, seed) is planned once by ``flycrane plan`` (the default planner, or
 ``flycrane fly-sitl --mode MODE`` (its own private network namespace, simulators stopped by
 PID; ``--lead`` passed on). With ``--faults K``, each flight gets one fault drawn from a
 generator seeded by the task's seed: a kind among ``gps``, ``link``, ``mode`` and ``motor``
-(0.8 of one motor's thrust), a drone, and a plan time between 20 % and 70 % of the plan.
+(0.8 of one motor's thrust), a drone, and a plan time between 20 % and 70 % of the plan;
+``--fault-kinds`` keeps the drones and times and draws the kind among fewer. The conditions a
+user would fly in: ``--stock-sensors`` and ``--parameter`` (SITL's wind) pass to fly-sitl.
 Figures are the flight report's (true positions from SIM_STATE, estimates from the
 autopilots, one common clock); BENCHMARKS.md ("Execution in step") records the runs. Results
 are kept in ``--out``: a rerun flies only what is missing. """
@@ -42,10 +44,13 @@ def plan(scene: str, seed: int, out: Path, planner: dict, mission: dict) -> dict
     return json.loads(summary_file.read_text())
 
 
-def fault_of(seed: int, duration: float) -> str:
-    """One fault for a flight, drawn from ``seed`` (module docstring)."""
+def fault_of(seed: int, duration: float, kinds: tuple[str, ...] = FAULT_KINDS) -> str:
+    """One fault for a flight, drawn from ``seed`` (module docstring). With fewer
+    ``kinds``, the drone and the time are the same as with all four: a drawn kind not
+    among them is replaced by one that is."""
     draw = random.Random(seed)
     kind, drone = draw.choice(FAULT_KINDS), draw.randint(1, 3)
+    kind = kind if kind in kinds else kinds[FAULT_KINDS.index(kind) % len(kinds)]
     at = round(draw.uniform(0.2, 0.7) * duration, 1)
     return f"{kind}:{drone}:{at}" + (":0.8" if kind == "motor" else "")
 
@@ -57,13 +62,16 @@ def fly(
     speedup: float,
     fault: str | None,
     lead: tuple[float, float] | None = None,
+    conditions: tuple[str, ...] = (),
 ) -> dict:
-    """One flight's figures (kept in ``out/result.json``)."""
+    """One flight's figures (kept in ``out/result.json``); ``conditions``: more options
+    of ``fly-sitl`` (``--stock-sensors``, ``--parameter SIM_WIND_SPD=3``)."""
     result_file = out / "result.json"
     if result_file.exists():
         return json.loads(result_file.read_text())
     extra = ["--fault", fault] if fault else []
     extra += ["--lead", *map(str, lead)] if lead else []
+    extra += conditions
     done = flycrane("fly-sitl", str(task_dir), "--out", str(out), "--mode", mode,
                     "--speedup", str(speedup), *extra)  # fmt: skip
     result: dict = {"mode": mode, "fault": fault, "status": done.returncode}
@@ -89,6 +97,8 @@ def fly(
             "progress_spread_max": report["timing"]["progress_spread_max"],
             "stop": report["stop"],
         }
+        if (record := out / "execution.json").exists():
+            result["silence_max"] = max(json.loads(record.read_text()).get("silences", [0.0]))
     out.mkdir(parents=True, exist_ok=True)
     result_file.write_text(json.dumps(result))
     return result
@@ -106,7 +116,8 @@ def table(results: list[dict]) -> None:
     """Per scene and mode: flights, unsafe, refused, and the figures' median (worst)."""
     print(
         "scene mode: flights unsafe refused errors | pair true p95 cm | pair est p95 cm | "
-        "track est p95 cm | duration % | start ms | progress max s | clearance cm min (med)"
+        "track est p95 cm | duration % | start ms | progress max s | longest silence ms | "
+        "clearance cm min (med)"
     )
     groups: dict[tuple[str, str], list[dict]] = {}
     for r in results:
@@ -123,6 +134,7 @@ def table(results: list[dict]) -> None:
             f"{spread([abs(r['duration_ratio'] - 1) for r in flown], 0.01)} | "
             f"{spread([r['start_spread'] for r in flown], 0.001, 0)} | "
             f"{spread([r['progress_spread_max'] for r in flown], 1.0, 2)} | "
+            f"{spread([r['silence_max'] for r in flown if 'silence_max' in r], 0.001, 0)} | "
             + (f"{min(clearances):.1f} ({statistics.median(clearances):.1f})" if flown else "-")
         )
     faulted = [r for r in results if r.get("fault") and "safe" in r]
@@ -150,6 +162,25 @@ def main() -> None:
     parser.add_argument("--seeds", type=seeds, default=seeds("0-9"))
     parser.add_argument("--modes", nargs="+", default=["missions", "stream", "onboard"])
     parser.add_argument("--faults", type=int, default=0, help="faults per flight (0 or 1)")
+    parser.add_argument(
+        "--fault-kinds",
+        nargs="+",
+        choices=FAULT_KINDS,
+        default=FAULT_KINDS,
+        help="the kinds drawn (the same drones and times as with all four)",
+    )
+    parser.add_argument(
+        "--stock-sensors",
+        action="store_true",
+        help="fly-sitl's --stock-sensors: SITL's sensors as they come",
+    )
+    parser.add_argument(
+        "--parameter",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="fly-sitl's --parameter, e.g. SIM_WIND_SPD=3 (repeatable)",
+    )
     parser.add_argument("--speedup", type=float, default=5.0)
     parser.add_argument("--out", type=Path, default=Path("execution-modes"))
     parser.add_argument("--lead", nargs=2, type=float, metavar=("HORIZONTAL", "VERTICAL"),
@@ -159,6 +190,8 @@ def main() -> None:
     parser.add_argument("--mission", type=json.loads, default={},
                         help='mission options as JSON: \'{"robust_clearance": true}\'')  # fmt: skip
     args = parser.parse_args()
+    conditions = ("--stock-sensors",) if args.stock_sensors else ()
+    conditions += tuple(a for p in args.parameter for a in ("--parameter", p))
     results = []
     for scene in args.scenes:
         for seed in args.seeds:
@@ -168,12 +201,12 @@ def main() -> None:
                 print(f"{scene} {seed}: no mission: {summary['reason'][:160]}", flush=True)
                 continue
             duration = summary["mission"]["duration"]
-            fault = fault_of(seed, duration) if args.faults else None
+            fault = fault_of(seed, duration, tuple(args.fault_kinds)) if args.faults else None
             for mode in args.modes:
                 name = mode + (f"-{fault.replace(':', '_')}" if fault else "")
                 name += f"-lead{args.lead[0]:g}_{args.lead[1]:g}" if args.lead else ""
                 out = args.out / f"{scene}-{seed}" / name
-                result = fly(task_dir, out, mode, args.speedup, fault, args.lead)
+                result = fly(task_dir, out, mode, args.speedup, fault, args.lead, conditions)
                 results.append({"scene": scene, "seed": seed} | result)
                 print(f"{scene} {seed} {mode} {fault or ''}: {json.dumps(result)[:300]}",
                       flush=True)  # fmt: skip
