@@ -66,7 +66,7 @@ class MonitorLimits:
 
     #: [s] of common time without a message: the aim's 0.2 s from the fault to the stop
     #: (the vehicles stream their position every 0.04 s); faster than real time the executor
-    #: raises it to the ground's pauses (:data:`missions.execution.executor.GROUND_PAUSE_S`)
+    #: raises it to the host's pauses (:data:`missions.execution.executor.GROUND_PAUSE_S`)
     link_timeout: float = 0.2
     stray_distance: float = 0.25  #: [m] from its target
     min_fix_type: int = 3  #: GPS_RAW_INT fix type the position-error model needs
