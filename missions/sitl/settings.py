@@ -30,7 +30,7 @@ class SitlSettings(BaseSettings):
         gt=0,
         le=50,
         description="simulated seconds per wall second (the host's pauses count this many "
-        "times over in the drones' time, and a lost link is judged on at least 0.2 s of wall "
+        "times over in the drones' time, and a lost link is judged on at least 0.1 s of wall "
         "time: faster, the team failsafe is slower in the drones' time)",
     )
     min_rate: float = Field(

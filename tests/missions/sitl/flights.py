@@ -70,9 +70,9 @@ def run_fly_sitl(
 
 def stalled(out: Path, extra: tuple[str, ...]) -> bool:
     """Whether the flight in ``out`` stopped on a drone's silence that no injected link
-    fault explains: a simulator that paused on this host, not a drone (at x5, 0.2 s of
-    this machine is the 1 s of silence that stops the team; at 0.5 s, 8 such stops in 40
-    flights of BENCHMARKS.md "A lost link in real time")."""
+    fault explains: a simulator that paused on this host, not a drone (at x5, 0.1 s of
+    this machine is the 0.5 s of silence that stops the team; 8 such stops in 40 flights
+    of BENCHMARKS.md "A lost link in real time")."""
     record_file = out / "execution.json"
     if not record_file.exists():
         return False
