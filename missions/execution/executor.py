@@ -309,8 +309,9 @@ class Executor(ABC):
                 silent = max(now - vehicle.heard - GROUND_PAUSE_S, 0.0) * self.speedup
                 heard = min(heard, t - silent)
                 self.monitor.heard(k, heard)
-                stale |= t - heard > STALE_S
-                self.record.silences[k] = max(self.record.silences[k], t - heard)
+                silence = t - heard
+                stale |= silence > STALE_S
+                self.record.silences[k] = max(self.record.silences[k], silence)
             self.monitor.observe(
                 k,
                 mode=vehicle.mode,
