@@ -331,15 +331,10 @@ class Executor(ABC):
         if stopping and not self._stopping:
             self._stopping = True
             self.record.commanded_stop_at = t
-            weak = [f.drone - 1 for f in stopping if f.kind is FaultKind.ATTITUDE]
             if stopping[0].kind in FOLLOWED:
                 self._leader = stopping[0].drone - 1
-            elif weak and self.anchors:
-                k = weak[0]
-                anchor = Anchor(self.vehicles[k], self.frames[k], self.trajectory.homes[k],
-                                partial(self.target, k), self.clock.tau, k, self.room)  # fmt: skip
-                self._anchor = (k, anchor)
             logger.warning("team stop: %s", "; ".join(map(str, stopping)))
+        self._anchor_on_weak(stopping)
         for fault in faults:
             self.record.faults.append({**asdict(fault), "kind": str(fault.kind)})
         if (self.cut or stale) and not self.link_loss_stops:
@@ -353,6 +348,22 @@ class Executor(ABC):
         badness = self.options.policy.badness(behind, formation)
         self.options.policy.steer(self.clock, start, badness, stop=self._stopping, sign=self._sign)
         return faults
+
+    def _anchor_on_weak(self, faults: list[Fault]) -> None:
+        """The other two follow the first drone seen weak (an attitude fault) that the ground
+        still flies (:mod:`.anchor`): at the team stop it caused, or during the hold after
+        another fault stopped the team, where braked at their stops they let a cable go
+        slack as it swings (BENCHMARKS.md "A weak motor during a hold")."""
+        if not self.anchors or not self._stopping or self._anchor is not None:
+            return
+        assert self.clock is not None
+        weak = [f.drone - 1 for f in faults if f.kind is FaultKind.ATTITUDE]
+        weak = [k for k in weak if k not in self.cut and k != self._leader]
+        if weak:
+            k = weak[0]
+            anchor = Anchor(self.vehicles[k], self.frames[k], self.trajectory.homes[k],
+                            partial(self.target, k), self.clock.tau, k, self.room)  # fmt: skip
+            self._anchor = (k, anchor)
 
     def _follow(self, k: int, t: float) -> None:
         """Steer the clock to drone k's progress (the plan time whose position of drone k is

@@ -82,15 +82,12 @@ def test_a_drone_leaving_beyond_the_limit_is_followed_no_farther():
     assert acceleration == pytest.approx(np.zeros(3))
 
 
-def test_a_weak_motor_stops_the_team_and_the_others_keep_the_formation_on_it():
-    """Drone 2 tilted 7 deg from what its controller asks for, 0.3 m east and 0.1 m below
-    its target and drifting east at 0.4 m/s faster than it: the team stops, drones 1 and
-    3 are sent their targets moved by that and pushed by its lean, drone 2 its own."""
-    executor = _executor(None)
-    executor.frames = [FRAME] * 3
-    executor.record = ExecutionRecord(mode="stream", start=100.0, duration=10.0, offsets=[0.0] * 3,
-                                      frames=[])  # fmt: skip
-    deviation, drift = np.array([0.3, 0.0, -0.1]), np.array([0.4, 0.0, 0.0])
+def _stream(
+    executor, deviation: np.ndarray, drift: np.ndarray, roll: float, fix_type: int = 6
+) -> None:
+    """Every drone heard at common time 103 s on its target, in GUIDED with a usable
+    estimate, except drone 2: ``deviation`` and ``drift`` off it and rolled ``roll`` [deg]
+    right where its controller asks for none; drone 3's GNSS fix ``fix_type``."""
     for k, vehicle in enumerate(executor.vehicles):
         p, v, _ = executor.target(k, 103.0)
         if k == 1:
@@ -100,13 +97,23 @@ def test_a_weak_motor_stops_the_team_and_the_others_keep_the_formation_on_it():
         vehicle.velocity = np.array([v[1], v[0], -v[2]])  # NED
         heard(vehicle, "HEARTBEAT", custom_mode=executor.expected_mode, system_status=4)
         heard(vehicle, "EKF_STATUS_REPORT", flags=EKF_NEEDED)
-        heard(vehicle, "GPS_RAW_INT", fix_type=6)
-        heard(vehicle, "ATTITUDE", time_boot_ms=3000, roll=math.radians(7.0 if k == 1 else 1.0),
+        heard(vehicle, "GPS_RAW_INT", fix_type=fix_type if k == 2 else 6)
+        heard(vehicle, "ATTITUDE", time_boot_ms=3000, roll=math.radians(roll if k == 1 else 1.0),
               pitch=0.0, yaw=0.0)  # fmt: skip
         heard(vehicle, "NAV_CONTROLLER_OUTPUT", nav_roll=0.0, nav_pitch=0.0)
-    faults = executor._judge(103.0)
-    assert {(f.drone, str(f.kind)) for f in faults} == {(2, "attitude"), (2, "stray")}
-    assert executor.stopped
+
+
+def _stopped_executor():
+    executor = _executor(None)
+    executor.frames = [FRAME] * 3
+    executor.record = ExecutionRecord(mode="stream", start=100.0, duration=10.0, offsets=[0.0] * 3,
+                                      frames=[])  # fmt: skip
+    return executor
+
+
+def _assert_the_others_follow_drone_2(executor, deviation: np.ndarray, drift: np.ndarray) -> None:
+    """0.1 s after its estimate drones 1 and 3 are sent their targets moved by drone 2's
+    deviation and drift and pushed by its 7 deg lean; drone 2 its own."""
     t = 103.1
     # rolled 7 deg right facing north: pushed east beyond its target's acceleration
     push = np.array([9.80665 * math.tan(math.radians(7.0)), 0.0, 0.0])
@@ -119,6 +126,38 @@ def test_a_weak_motor_stops_the_team_and_the_others_keep_the_formation_on_it():
         assert moved[2] == pytest.approx(a + push)
     own = executor.commanded(1, t)
     assert own[0] == pytest.approx(executor.target(1, t)[0])
+
+
+def test_a_weak_motor_stops_the_team_and_the_others_keep_the_formation_on_it():
+    """Drone 2 tilted 7 deg from what its controller asks for, 0.3 m east and 0.1 m below
+    its target and drifting east at 0.4 m/s faster than it: the team stops, drones 1 and
+    3 are sent their targets moved by that and pushed by its lean, drone 2 its own."""
+    executor = _stopped_executor()
+    deviation, drift = np.array([0.3, 0.0, -0.1]), np.array([0.4, 0.0, 0.0])
+    _stream(executor, deviation, drift, roll=7.0)
+    faults = executor._judge(103.0)
+    assert {(f.drone, str(f.kind)) for f in faults} == {(2, "attitude"), (2, "stray")}
+    assert executor.stopped
+    _assert_the_others_follow_drone_2(executor, deviation, drift)
+
+
+def test_a_weak_motor_during_the_hold_after_another_fault_is_followed_too():
+    """Drone 3's GNSS fix lost stops the team, and the others hold at their targets; then
+    drone 2 weakens during the hold (tilted and off its target as above): drones 1 and 3
+    follow it as they would had it stopped the team."""
+    executor = _stopped_executor()
+    still = np.zeros(3)
+    _stream(executor, still, still, roll=1.0, fix_type=1)
+    faults = executor._judge(103.0)
+    assert [(f.drone, str(f.kind)) for f in faults] == [(3, "gps")]
+    assert executor.stopped
+    for k in (0, 2):
+        assert executor.commanded(k, 103.1)[0] == pytest.approx(executor.target(k, 103.1)[0])
+    deviation, drift = np.array([0.3, 0.0, -0.1]), np.array([0.4, 0.0, 0.0])
+    _stream(executor, deviation, drift, roll=7.0, fix_type=1)
+    faults = executor._judge(103.0)
+    assert {(f.drone, str(f.kind)) for f in faults} == {(2, "attitude"), (2, "stray")}
+    _assert_the_others_follow_drone_2(executor, deviation, drift)
 
 
 def test_the_others_follow_as_little_as_keeps_the_load_safe_with_room_to_spare():
