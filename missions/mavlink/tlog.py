@@ -6,8 +6,9 @@ a big-endian unsigned 64-bit count of microseconds since the Unix epoch. :class:
 listens on a :class:`~missions.mavlink.transport.VehicleLink` and appends every message
 from the vehicle. Its clock is given: wall time for a real flight; for a simulator running
 ``speedup`` times faster than the wall clock, wall time stretched by the speed-up from the
-start of the log (:class:`StretchedClock`), so that the log replays at the speed of the
-simulated flight and logs of several simulators share one time base.
+start of the log, piecewise where the simulators change pace (:class:`StretchedClock`), so
+that the log replays at the speed of the simulated flight and logs of several simulators
+share one time base.
 """
 
 from __future__ import annotations
@@ -16,7 +17,6 @@ import struct
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -26,18 +26,28 @@ from missions.mavlink.transport import VehicleLink
 Clock = Callable[[], float]
 
 
-@dataclass(frozen=True)
 class StretchedClock:
     """POSIX time of a simulation started at ``start_utc`` / ``start_monotonic`` and
-    running ``speedup`` times faster than the wall clock."""
+    running ``speedup`` times faster than the wall clock, until :meth:`change_pace` gives it
+    another speed-up from a moment on (reader threads read it while it changes)."""
 
-    speedup: float
-    start_utc: float
-    start_monotonic: float
+    def __init__(self, speedup: float, start_utc: float, start_monotonic: float) -> None:
+        self._base = (speedup, start_utc, start_monotonic)
+
+    @property
+    def speedup(self) -> float:
+        return self._base[0]
 
     def at(self, monotonic: float) -> float:
-        """The simulation's POSIX time at monotonic time ``monotonic`` [s]."""
-        return self.start_utc + (monotonic - self.start_monotonic) * self.speedup
+        """The simulation's POSIX time at monotonic time ``monotonic`` [s], a moment since
+        the last change of pace."""
+        speedup, utc, start = self._base
+        return utc + (monotonic - start) * speedup
+
+    def change_pace(self, speedup: float, monotonic: float) -> None:
+        """Run ``speedup`` times faster than the wall clock from monotonic time
+        ``monotonic`` on."""
+        self._base = (speedup, self.at(monotonic), monotonic)
 
     def __call__(self) -> float:
         return self.at(time.monotonic())

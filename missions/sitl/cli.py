@@ -24,6 +24,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from pydantic import ValidationError
+
 from flycrane.errors import FlyCraneError
 from missions.execution.options import MAX_LEAD_S
 from missions.flight_report import report_sitl_flight, write_report
@@ -42,11 +44,17 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
         return subprocess.run(isolated_command(command), check=False).returncode
     if isolated():
         bring_up_loopback()
-    settings = SitlSettings()
-    if args.speedup:
-        settings = settings.model_copy(update={"speedup": args.speedup})
+    chosen = {"speedup": args.speedup, "boot_speedup": args.boot_speedup}
+    given = {name: value for name, value in chosen.items() if value is not None}
     if args.stock_sensors:
-        settings = settings.model_copy(update={"calibrated_barometers": False, "gyro_drift": True})
+        given |= {"calibrated_barometers": False, "gyro_drift": True}
+    try:
+        settings = SitlSettings(**given)
+    except ValidationError as error:
+        for problem in error.errors():
+            field = ".".join(str(part) for part in problem["loc"])
+            print(f"fly-sitl: {field}: {problem['msg']}", file=sys.stderr)
+        return 2
     overrides = dict(args.parameter)
     delays = args.release_delays
     options = SitlFlightOptions(
@@ -142,6 +150,11 @@ def register(commands: argparse._SubParsersAction) -> None:
         "ArduCopter 4.5.7's default tuning)",
     )  # fmt: skip
     command.add_argument("--speedup", type=float, help="simulation speed-up (default: 5)")
+    command.add_argument(
+        "--boot-speedup", type=float,
+        help="simulation speed-up from the boot to the steady hold before the release "
+        "(default: --speedup)",
+    )  # fmt: skip
     command.add_argument(
         "--stock-sensors", action="store_true",
         help="SITL's sensors as they come: no barometer calibration, gyro drift on",

@@ -41,7 +41,6 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
-from missions.execution.anchor import FormationRoom
 from missions.execution.executor import Executor
 from missions.execution.group_clock import RatePolicy
 from missions.execution.missions import MissionsExecutor
@@ -51,7 +50,6 @@ from missions.execution.readiness import Readiness, check_readiness, settings_re
 from missions.execution.stream import StreamExecutor
 from missions.execution.team import MonitorLimits
 from missions.export.items import DroneMission
-from missions.export.onboard import onboard_mission
 from missions.flight_report.record import EXECUTION_FILE, FlightRecord, VehicleRecord
 from missions.mavlink.commands import set_message_interval
 from missions.mavlink.errors import MavlinkError
@@ -59,19 +57,15 @@ from missions.mavlink.fleet import Fleet, on_every_vehicle
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.tlog import StretchedClock, TlogWriter
 from missions.mavlink.transport import VehicleLink
-from missions.options import GeodeticOrigin
-from missions.position_error import PositionErrorModel, position_error_model
 from missions.sitl.errors import SitlError
 from missions.sitl.faults import FaultPlan, inject
+from missions.sitl.plan_files import FlightPlanFiles, Mode
 from missions.sitl.process import SitlGroup, SitlHome
 from missions.sitl.settings import SitlSettings
 from missions.sitl.watch import HoldWatch, RateMeter, wait_for
-from missions.task.directory import TaskDirectory
-from missions.trajectory.drone_trajectory import DroneTrajectory
 
 logger = logging.getLogger(__name__)
 
-Mode = Literal["missions", "stream", "onboard"]
 #: Parameters the simulator needs and a real vehicle must not get from us.
 SITL_PARAMETERS = {"ARMING_CHECK": 0.0}  # no RC, no pre-arm checks to pass
 #: EKF_STATUS_REPORT flags of a usable position estimate: attitude, horizontal and vertical
@@ -125,61 +119,6 @@ class SitlFlightOptions:
     check_readiness: bool = True  #: refuse the release when positioning is not the model's
 
 
-@dataclass(frozen=True)
-class FlightPlanFiles:
-    """What a flight needs from a task's directory (``flycrane plan`` output)."""
-
-    missions: tuple[DroneMission, ...]
-    parameters: tuple[dict[str, float], ...]  #: per drone, from ``drone{k}.parm``
-    hold_seq: int  #: the NAV_LOITER_UNLIM at the start
-    release_seq: int  #: the item the release jumps to
-    end_seq: tuple[int, ...]  #: per drone, its last item (the hold at the end)
-    duration_s: float  #: the missions' duration after the release
-    trajectory: DroneTrajectory
-    model: PositionErrorModel
-    origin: GeodeticOrigin
-    home_height: float
-    room: FormationRoom | None  #: where a faulty drone's followers may go (stream only)
-
-    @classmethod
-    def read(cls, task_dir: Path, mode: Mode = "stream") -> FlightPlanFiles:
-        """For a flight in ``mode``, from a task's directory (:class:`TaskDirectory`).
-
-        Raises
-        ------
-        TaskDirectoryError
-            A file the flight needs is missing or unreadable.
-        """
-        directory = TaskDirectory(task_dir)
-        missions, summary = directory.missions(), directory.mission_summary()
-        options = (task := directory.task()).mission
-        model, trajectory = position_error_model(options.position_error), directory.trajectory()
-        room = None  # built before the flight: its first check loads the compiled checker
-        if mode == "stream":
-            room = FormationRoom.of_task(task, task_dir, trajectory, model.obstacle_clearance)
-        return cls(
-            missions=tuple(missions),
-            parameters=tuple(directory.parameters()),
-            hold_seq=summary.release.hold_seq,
-            release_seq=summary.release.release_seq,
-            end_seq=tuple(m.items[-1].seq for m in missions),
-            duration_s=summary.duration,
-            trajectory=trajectory,
-            model=model,
-            origin=options.origin,
-            home_height=options.home_height,
-            room=room,
-        )
-
-    def for_mode(self, mode: Mode) -> tuple[tuple[DroneMission, ...], int]:
-        """The missions to upload for ``mode``, and the item the executor starts."""
-        if mode == "onboard":
-            return tuple(onboard_mission(m, self.hold_seq) for m in self.missions), (
-                self.hold_seq + 1
-            )
-        return self.missions, self.release_seq
-
-
 def _policy(settings: SitlSettings) -> RetryPolicy:
     # Simulated time runs ``speedup`` times faster, so the vehicles answer in wall
     # milliseconds; the heartbeat waits for the boot (SITL starts on our connection).
@@ -226,10 +165,11 @@ def fly_on_sitl(
     policy = _policy(settings)
     names = [f"drone{k}" for k in (1, 2, 3)]
     scripts = (PLAYER_SCRIPT,) if options.mode == "onboard" else ()
-    group = SitlGroup(settings, _homes(plan.missions), out_dir / "sitl", scripts=scripts)
+    boot = settings.model_copy(update={"speedup": settings.boot_speedup or settings.speedup})
+    group = SitlGroup(boot, _homes(plan.missions), out_dir / "sitl", scripts=scripts)
     with group as instances:
         wall0, utc0 = time.monotonic(), time.time()
-        clock = StretchedClock(settings.speedup, utc0, wall0)
+        clock = StretchedClock(boot.speedup, utc0, wall0)
         try:
             fleet = Fleet.connect([i.address for i in instances], policy, names)
         except MavlinkError:
@@ -309,7 +249,8 @@ def _fly(
     uploads = fleet.upload(missions, parameters=plan.parameters)
     differences = tuple(str(error) for upload in uploads for error in upload.parameter_errors)
     executor = _executor(options.mode, links, plan, options, sim, policy, start_seq)
-    pace = sim * settings.min_rate  # waits in wall time are sized for the slowest pace
+    # waits in wall time are sized for the slowest pace
+    pace = min(sim, clock.speedup) * settings.min_rate
     if isinstance(executor, OnboardExecutor):
         executor.upload(timeout=60.0)
     holds = [m.items[plan.hold_seq] for m in missions]
@@ -321,6 +262,8 @@ def _fly(
         readiness = _take_off(fleet, watch, plan, options, policy, pace)
     injected: list[dict] = []
     if readiness.ready:
+        if clock.speedup != sim:
+            _change_pace(fleet, sim, clock, rates)
         injected = _execute(executor, plan, options, policy, pace)
         (out_dir / EXECUTION_FILE).write_text(
             json.dumps(executor.record.as_dict() if executor.record else {}, indent=2) + "\n",
@@ -363,6 +306,15 @@ def _fly(
         refused=tuple(readiness.reasons),
         faults=tuple(injected),
     )
+
+
+def _change_pace(fleet: Fleet, speedup: float, clock: StretchedClock, rates: RateMeter) -> None:
+    """The simulators' pace from now on: ``speedup`` (SIM_SPEEDUP, set on the three at once
+    and each confirmed), and the log's clock and the pace's measure with them."""
+    now = time.monotonic()
+    fleet.set_parameters([{"SIM_SPEEDUP": speedup}] * len(fleet.links))
+    clock.change_pace(speedup, (now + time.monotonic()) / 2)
+    rates.restart()
 
 
 def _take_off(

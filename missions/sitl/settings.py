@@ -33,6 +33,14 @@ class SitlSettings(BaseSettings):
         "times over in the drones' time, and a lost link is judged on at least 0.1 s of wall "
         "time: faster, the team failsafe is slower in the drones' time)",
     )
+    boot_speedup: float | None = Field(
+        None,
+        gt=0,
+        le=50,
+        description="simulated seconds per wall second from the boot to the steady hold "
+        "before the release, where the ground reacts to nothing in tenths of a second (None: "
+        "speedup); the simulators take speedup for the execution (SIM_SPEEDUP)",
+    )
     min_rate: float = Field(
         0.2,
         gt=0,

@@ -62,6 +62,11 @@ class RateMeter:
 
         return on
 
+    def restart(self) -> None:
+        """Measure from now on (after a change of pace)."""
+        self.first.clear()
+        self.last.clear()
+
     def rates(self) -> dict[str, float]:
         rates = {}
         for name, (wall0, boot0) in self.first.items():

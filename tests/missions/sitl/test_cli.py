@@ -1,0 +1,29 @@
+"""``flycrane fly-sitl``'s bad arguments: a message naming the setting and a non-zero exit
+before any simulator starts (no simulator needed)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--speedup", "0"], "fly-sitl: speedup: Input should be greater than 0"),
+        (["--speedup", "-3"], "fly-sitl: speedup: Input should be greater than 0"),
+        (["--boot-speedup", "60"], "fly-sitl: boot_speedup: Input should be less than or equal"),
+    ],
+)
+def test_a_bad_speedup_is_refused_with_its_name(args, message, tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-m", "flycrane.cli", "fly-sitl", str(tmp_path), "--out",
+         str(tmp_path / "out"), "--shared-network", *args],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert message in done.stderr
+    assert "Traceback" not in done.stderr
+    assert not (tmp_path / "out").exists()
