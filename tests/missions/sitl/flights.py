@@ -38,13 +38,14 @@ FLIGHT_TIMEOUT_S = 600
 #: reads as a lost link, so x10 judges the load of the machine, not the execution. At x5 it
 #: is a quarter of a second (BENCHMARKS.md "Execution in step").
 SPEEDUP = 5
-#: The speed-up of the flights whose verdict turns on the ground reacting within a tenth of
-#: a second of the drones' time (a team stop and its drones at rest, a weak motor's
-#: followers) or that left their bounds at x5 (the Puzzle in step). At x5 a 20-40 ms pause
-#: of the ground (a reader waiting for Python's lock, a simulator waiting for a core) is
-#: 0.1-0.2 s of the drones' time: the Puzzle's seed-5 weak motor lost its load in 3 of 4
-#: such flights, and each of these tests failed in one of four suite runs or more; at x2
-#: each passed (BENCHMARKS.md "The suite's flights that judge tenths of a second").
+#: The speed-up of the flights whose verdict turns on the ground's timing within a tenth of
+#: a second of the drones' time: every stream and onboard flight but the stock sensors'
+#: (starts, progress, a team stop and its drones at rest, a weak motor's followers). At x5
+#: a 20-70 ms pause of the ground (a reader waiting for Python's lock, a simulator waiting
+#: for a core) is 0.1-0.35 s of the drones' time: the Puzzle's seed-5 weak motor lost its
+#: load in 3 of 4 such flights, the Rescue in step once started 0.14 s apart, and each of
+#: these tests failed in one of four suite runs or more at x5 (BENCHMARKS.md "The suite's
+#: flights that judge tenths of a second", "The suite's run time").
 CLOSE_SPEEDUP = 2
 #: Every flight boots, takes off and settles at its hold at x5, where nothing turns on the
 #: ground's tenths of a second, and is then played at its own speed-up (``--boot-speedup``):

@@ -45,7 +45,7 @@ def execution(out: Path) -> dict:
 
 
 def test_the_rescue_streamed_from_one_clock_flies_in_step(rescue: Path, tmp_path: Path):
-    report = fly(rescue, tmp_path, "--mode", "stream")
+    report = fly(rescue, tmp_path, "--mode", "stream", speedup=CLOSE_SPEEDUP)
     assert_in_step(report)
     assert report["stop"] is None and execution(tmp_path)["faults"] == []
 
@@ -65,7 +65,9 @@ def test_a_late_drone_slows_the_team_instead_of_stretching_the_formation(
 ):
     """Drone 3 held at its start for 1 s after the others' start: the group clock falls
     (the plan waits for it) and the formation holds."""
-    report = fly(rescue, tmp_path, "--mode", "stream", "--fault", "late:3:0:1.0")
+    report = fly(
+        rescue, tmp_path, "--mode", "stream", "--fault", "late:3:0:1.0", speedup=CLOSE_SPEEDUP
+    )
     record = execution(tmp_path)
     assert min(s["rate_end"] for s in record["segments"]) < 0.5  # the team waited
     assert report["verdict"]["safe"], report["verdict"]["reasons"]
@@ -140,7 +142,9 @@ def test_the_onboard_player_keeps_the_team_in_step_through_a_lost_link(
 ):
     """The players on board keep the group clock: drone 1's link lost mid-flight, all
     three fly on in step to the end, with no team stop."""
-    report = fly(rescue, tmp_path, "--mode", "onboard", "--fault", "link:1:6")
+    report = fly(
+        rescue, tmp_path, "--mode", "onboard", "--fault", "link:1:6", speedup=CLOSE_SPEEDUP
+    )
     assert report["stop"] is None
     assert [f["kind"] for f in execution(tmp_path)["faults"]] == ["link"]
     assert report["verdict"]["safe"], report["verdict"]["reasons"]
