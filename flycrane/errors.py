@@ -100,3 +100,9 @@ def dotted(loc: Sequence[int | str]) -> str:
         else:
             text += ("." if text else "") + str(part).rstrip("_")
     return text
+
+
+def field_messages(errors: Iterable[Mapping[str, Any]]) -> list[tuple[str, str]]:
+    """Pydantic errors (``error.errors()``) as (field as a user writes it, message) pairs,
+    for a command line's settings (:func:`readable_errors`, :func:`dotted`)."""
+    return [(dotted(item["loc"]), item["msg"]) for item in readable_errors(errors)]

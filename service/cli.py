@@ -13,6 +13,8 @@ import sys
 
 from pydantic import ValidationError
 
+from flycrane.errors import field_messages
+
 
 def _loopback(host: str) -> bool:
     if host == "localhost":
@@ -37,9 +39,8 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     try:
         settings = Settings(**overrides)
     except ValidationError as error:
-        for problem in error.errors():
-            field = ".".join(str(p) for p in problem["loc"])
-            print(f"flycrane serve: FLYCRANE_{field.upper()}: {problem['msg']}", file=sys.stderr)
+        for field, message in field_messages(error.errors()):
+            print(f"flycrane serve: FLYCRANE_{field.upper()}: {message}", file=sys.stderr)
         return 2
     if settings.api_token is None and not _loopback(args.host) and not args.allow_unauthenticated:
         print(

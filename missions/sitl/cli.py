@@ -26,7 +26,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from flycrane.errors import FlyCraneError
+from flycrane.errors import FlyCraneError, field_messages
 from missions.execution.options import MAX_LEAD_S
 from missions.flight_report import report_sitl_flight, write_report
 from missions.sitl.faults import KINDS, FaultPlan
@@ -51,9 +51,8 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
     try:
         settings = SitlSettings(**given)
     except ValidationError as error:
-        for problem in error.errors():
-            field = ".".join(str(part) for part in problem["loc"])
-            print(f"fly-sitl: {field}: {problem['msg']}", file=sys.stderr)
+        for field, message in field_messages(error.errors()):
+            print(f"fly-sitl: {field}: {message}", file=sys.stderr)
         return 2
     overrides = dict(args.parameter)
     delays = args.release_delays
