@@ -50,12 +50,13 @@ postgres:
 	$(call apt_install,postgresql,/usr/lib/postgresql/*/bin/initdb,PostgreSQL tests)
 
 # The whole default test suite (CI runs exactly this through .ci/run): the static checks
-# first (lint), then pytest in two runs. The tests that do not fly run on two workers
-# (pytest-xdist, each module on one worker so that its fixtures start once); the SITL
-# flights then run one at a time, alone on the machine, because each keeps three simulators
-# and the ground's executor busy on its two cores.
+# first (lint), then pytest in two runs. The tests that do not fly run on three workers
+# (pytest-xdist, each module on one worker so that its fixtures start once; three on two
+# cores, since many of them wait on servers, subprocesses and a browser); the SITL flights
+# then run one at a time, alone on the machine, because each keeps three simulators and the
+# ground's executor busy on its two cores.
 test: lint browser postgres
-	$(BIN)/python -m pytest -n 2 --dist loadscope -m "not slow and not sitl"
+	$(BIN)/python -m pytest -n 3 --dist loadscope -m "not slow and not sitl"
 	$(BIN)/python -m pytest -m "sitl and not slow"
 
 # Long soak and statistical cases, kept out of the default run.
