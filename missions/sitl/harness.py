@@ -273,10 +273,11 @@ def _fly(
         logger.warning("release refused: %s", "; ".join(readiness.reasons))
     _wait_margin(watch, options.end_margin_s, pace)
     achieved = rates.rates()
-    slow = {n: r for n, r in achieved.items() if r < settings.min_rate * sim}
+    paced = clock.speedup  # the flight's, or the boot's where the release was refused
+    slow = {n: r for n, r in achieved.items() if r < settings.min_rate * paced}
     if slow:
         raise SitlError(
-            f"simulators ran slower than {settings.min_rate:.0%} of x{sim:g}: "
+            f"simulators ran slower than {settings.min_rate:.0%} of x{paced:g}: "
             + ", ".join(f"{n} x{r:.2f}" for n, r in slow.items())
         )
     report = executor.report if isinstance(executor, MissionsExecutor) else None
