@@ -49,7 +49,7 @@ SPEEDUP = 5
 CLOSE_SPEEDUP = 2
 #: Every flight boots, takes off and settles at its hold at x5, where nothing turns on the
 #: ground's tenths of a second, and is then played at its own speed-up (``--boot-speedup``):
-#: a flight at x2 takes 30 s of wall time instead of 48 (BENCHMARKS.md "A faster boot").
+#: a flight at x2 takes 30 s of wall time instead of 48 (BENCHMARKS.md "The suite's run time").
 BOOT_SPEEDUP = SPEEDUP
 
 
