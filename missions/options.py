@@ -101,13 +101,14 @@ class MissionOptions(BaseModel):
         "the obstacle clearance follows from it (missions.position_error)",
     )
     robust_clearance: bool = Field(
-        False,
+        True,
         strict=True,
         description="plan again with a larger obstacle clearance while the path's robust "
         "margin (its least gap less what the position error's drone errors can close there, "
         "flycrane.planning.robust_clearance) is below zero, and with another seed while its "
         "robust statics margin (its least tension or thrust margin less what the drones' own "
-        "errors can take of it, flycrane.model.robust_statics) is",
+        "errors can take of it, flycrane.model.robust_statics) is; on by default, false "
+        "keeps the one clearance of the position-error model along the whole path",
     )
     vertical_leg_speed: float = Field(
         0.1, ge=0.01, le=0.5, strict=True, description="[m/s] of lift-off and set-down legs"

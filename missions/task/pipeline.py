@@ -7,9 +7,9 @@ TaskDirectory`, the MCAP log and the profile plot). Not finding a path, or a pat
 cannot be flown safely, is an outcome (status "failed" with the reason), not an exception:
 every phase ends in the one failure exit, which writes ``summary.json``. A path whose
 missions fail their check is planned again with another seed while the budget lasts; with
-``mission.robust_clearance``, a path the drones' errors could bring closer to an obstacle
-than it keeps is planned again with a larger clearance, and one whose statics margins they
-could exhaust with another seed.
+``mission.robust_clearance`` (the default), a path the drones' errors could bring closer
+to an obstacle than it keeps is planned again with a larger clearance, and one whose
+statics margins they could exhaust with another seed.
 """
 
 from __future__ import annotations

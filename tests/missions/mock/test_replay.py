@@ -115,6 +115,9 @@ class Exported:
     set_down: dict | None  #: tracks.json's set-down leg (start_time, surfaces)
     directory: Path  #: the task's directory
     tracking_deviation: float  #: summary.json's max_tracking_deviation [m]
+    #: summary.json's early legs: (drone, leg), 1-based, which ArduCopter's speed floor
+    #: makes that drone fly faster than planned (the plan's check models them so)
+    early_legs: tuple[tuple[int, int], ...] = ()
 
 
 @pytest.fixture(scope="module")
@@ -151,6 +154,7 @@ def export(task: TaskSpec, tmp_path_factory: pytest.TempPathFactory) -> Exported
         track, np.array(tracks["time"]), tracks["timing_tolerance"],
         summary["release"]["hold_seq"], summary["release"]["release_seq"],
         tracks.get("set_down"), out, summary["max_tracking_deviation"],
+        tuple((int(d), int(leg)) for d, leg in summary["early_legs"]),
     )  # fmt: skip
 
 
@@ -415,11 +419,16 @@ def check_ideal_flight(exported: Exported, flight: Flight) -> None:
 
     # the three left their hold together (one release, clock held)...
     assert np.ptp(flown.leave) <= SYNC_S
-    # ...and reach every waypoint together, and when the plan says
-    spread = np.ptp(flown.arrivals, axis=0)
-    assert spread.max() <= ARRIVAL_SPREAD_S, f"arrival spreads {np.round(spread, 3)}"
+    # ...and reach every waypoint together, and when the plan says, but at the end of a
+    # leg the plan says a drone flies early, where that drone is never late
     late = flown.arrivals - flown.leave[:, None] - exported.waypoint_time[None, 1:]
-    assert np.abs(late).max() <= ARRIVAL_SPREAD_S, f"arrivals - plan {np.round(late, 3)}"
+    timed = np.ones(late.shape[1], dtype=bool)
+    for drone, leg in exported.early_legs:
+        timed[leg - 1] = False
+        assert late[drone - 1, leg - 1] <= ARRIVAL_SPREAD_S, f"drone {drone} late, leg {leg}"
+    spread = np.ptp(flown.arrivals[:, timed], axis=0)
+    assert spread.max() <= ARRIVAL_SPREAD_S, f"arrival spreads {np.round(spread, 3)}"
+    assert np.abs(late[:, timed]).max() <= ARRIVAL_SPREAD_S, f"arrivals - plan {np.round(late, 3)}"
 
     deviation = deviation_at_same_progress(exported.track, flown.drones, rebuilt.q)
     allowed = exported.tracking_deviation + RESOLUTION_M

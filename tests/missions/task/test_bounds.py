@@ -143,11 +143,14 @@ def test_a_path_whose_missions_fail_their_check_is_planned_again_with_the_next_s
                     mission=MissionOptions(position_error="sitl"))  # fmt: skip
     outcome = run_task(task, tmp_path)
     assert outcome.status == "done", outcome.reason
-    assert outcome.attempts == ({"seed": 7, "reason": "the modelled flight fails its check at "
-                                 "11.80 s"},)  # fmt: skip
+    # (the robust clearance may raise the clearance first: an attempt of its own)
+    unflyable = tuple(a for a in outcome.attempts if not raised_clearance(a))
+    assert unflyable == ({"seed": 7, "reason": "the modelled flight fails its check at "
+                          "11.80 s"},)  # fmt: skip
     written = json.loads((tmp_path / "task.json").read_text())
     assert written["planner"]["seed"] == 8
-    assert json.loads((tmp_path / "summary.json").read_text())["attempts"][0]["seed"] == 7
+    assert [a["seed"] for a in json.loads((tmp_path / "summary.json").read_text())["attempts"]
+            if not raised_clearance(a)] == [7]  # fmt: skip
 
 
 def test_a_path_the_drones_errors_could_make_infeasible_is_planned_again_when_asked(
@@ -191,5 +194,6 @@ def test_planning_again_stops_at_the_most_plans_and_says_which_seeds(
     monkeypatch.setattr(pipeline, "build", never)
     outcome = run_task(TaskSpec(scene="rescue", planner=PlannerOptions(seed=3)), tmp_path)
     assert outcome.status == "failed"
-    assert [a["seed"] for a in outcome.attempts] == [3, 4, 5, 6][: pipeline.MAX_PLANS]
+    given_up = [a["seed"] for a in outcome.attempts if not raised_clearance(a)]
+    assert given_up == [3, 4, 5, 6][: pipeline.MAX_PLANS]
     assert outcome.reason.endswith("(seeds tried: 3, 4, 5, 6)")

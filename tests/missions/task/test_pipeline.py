@@ -8,6 +8,7 @@ start and goal, and their speed items against the limits the plan solved.
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -243,7 +244,8 @@ def test_plan_command_prints_where_the_missions_are(tmp_path, capsys):
         assert (tmp_path / f"drone{j}.waypoints").exists()
     assert str(tmp_path / "mission.mcap") in out
     assert str(tmp_path / "summary.json") in out
-    assert "clearance kept: 8.0 cm\n" in out  # the default model's; no robust margin asked
+    # the default model's clearance, and the robust margin the default requires
+    assert re.search(r"clearance kept: 8\.0 cm; robust margin \d+\.\d cm\n", out), out
 
 
 def test_a_robust_clearance_plans_again_until_the_errors_cannot_close_the_gap(tmp_path, capsys):
@@ -279,9 +281,15 @@ def test_a_robust_clearance_plans_again_until_the_errors_cannot_close_the_gap(tm
     assert checker.collision.collision_free(samples).all()
 
 
-def test_without_a_robust_clearance_no_robust_margin_is_reported(rescue):
+def test_the_default_task_requires_a_robust_margin_and_can_be_told_not_to(rescue, tmp_path):
+    """``mission.robust_clearance`` is on by default: the summary gives the path's robust
+    margin, at least zero on the Rescue; a task that turns it off keeps one clearance and
+    reports none."""
     _, out = rescue
-    assert "robust_margin" not in json.loads((out / "summary.json").read_text())["mission"]
+    assert json.loads((out / "summary.json").read_text())["mission"]["robust_margin"] >= 0.0
+    task = TASK.model_copy(update={"mission": MissionOptions(robust_clearance=False)})
+    assert run_task(task, tmp_path).status == "done"
+    assert "robust_margin" not in json.loads((tmp_path / "summary.json").read_text())["mission"]
 
 
 def test_the_statics_margins_are_reported_against_the_drones_errors(rescue):
