@@ -182,6 +182,8 @@ def main() -> None:
         help="fly-sitl's --parameter, e.g. SIM_WIND_SPD=3 (repeatable)",
     )
     parser.add_argument("--speedup", type=float, default=5.0)
+    parser.add_argument("--boot-speedup", type=float,
+                        help="fly-sitl's --boot-speedup (default: the flight's)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=Path("execution-modes"))
     parser.add_argument("--lead", nargs=2, type=float, metavar=("HORIZONTAL", "VERTICAL"),
                         help="fly-sitl's --lead (default: the mode's)")  # fmt: skip
@@ -192,6 +194,7 @@ def main() -> None:
     args = parser.parse_args()
     conditions = ("--stock-sensors",) if args.stock_sensors else ()
     conditions += tuple(a for p in args.parameter for a in ("--parameter", p))
+    conditions += ("--boot-speedup", str(args.boot_speedup)) if args.boot_speedup else ()
     results = []
     for scene in args.scenes:
         for seed in args.seeds:
