@@ -53,11 +53,11 @@ CLOSE_SPEEDUP = 2
 BOOT_SPEEDUP = SPEEDUP
 
 
-def plan(scene: str, seed: int, out: Path) -> Path:
+def plan(scene: str, seed: int, out: Path, robust_clearance: bool = True) -> Path:
     task = TaskSpec(
         scene=scene,
         planner=PlannerOptions(seed=seed, time_budget=120),
-        mission=MissionOptions(position_error="sitl"),
+        mission=MissionOptions(position_error="sitl", robust_clearance=robust_clearance),
     )
     outcome = run_task(task, out)
     assert outcome.status == "done", outcome.reason

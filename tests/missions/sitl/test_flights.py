@@ -83,10 +83,10 @@ def test_rescue_flies_in_step_and_safe(rescue: Path, tmp_path: Path):
     assert_released_at_the_start(rescue, report)
 
 
-def test_puzzle_flies_in_step_and_safe(puzzle: Path, tmp_path: Path):
-    report = fly_released(puzzle, tmp_path)
+def test_puzzle_flies_in_step_and_safe(puzzle_one_clearance: Path, tmp_path: Path):
+    report = fly_released(puzzle_one_clearance, tmp_path)
     assert_in_step_and_safe(report)
-    assert_released_at_the_start(puzzle, report)
+    assert_released_at_the_start(puzzle_one_clearance, report)
 
 
 def start_offset_tolerance(task_dir: Path) -> float:
