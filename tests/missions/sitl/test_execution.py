@@ -119,8 +119,10 @@ def test_a_weak_motor_whose_drone_swings_away_is_followed_as_far_as_keeps_the_lo
     load feasible, the other two let a cable go slack (5 of 5 runs, BENCHMARKS.md "A weak
     motor"); moved with it as far as keeps the load safe with room to spare and pushed by
     its lean, they follow it by more than 0.3 m and the load stays safe (true
-    positions)."""
-    task_dir = plan("puzzle", 5, tmp_path / "plan")
+    positions). Flown on the plan kept at one clearance, where the rule was measured: the
+    robust plan of this seed keeps a robust statics margin of 0.001 N, and lost a cable by
+    9 mN in one of five suite runs (BENCHMARKS.md "The missions mode on robust plans")."""
+    task_dir = plan("puzzle", 5, tmp_path / "plan", robust_clearance=False)
     out = tmp_path / "flight"
     report = fly(
         task_dir, out, "--mode", "stream", "--fault", "motor:3:8.6:0.8", speedup=CLOSE_SPEEDUP
