@@ -28,9 +28,7 @@ from pydantic import ValidationError
 
 from flycrane.errors import FlyCraneError, field_messages
 from missions.execution.options import MAX_LEAD_S
-from missions.flight_report import report_sitl_flight, write_report
 from missions.sitl.faults import KINDS, FaultPlan
-from missions.sitl.harness import SitlFlightOptions, fly_on_sitl
 from missions.sitl.netns import bring_up_loopback, isolated, isolated_command
 from missions.sitl.settings import SitlSettings
 
@@ -44,6 +42,11 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
         return subprocess.run(isolated_command(command), check=False).returncode
     if isolated():
         bring_up_loopback()
+    # the flight's stack (MAVLink, the autopilot model's kernels, the report) loads here, in
+    # the process that flies, not in the one that only starts it in its namespace
+    from missions.flight_report import report_sitl_flight, write_report
+    from missions.sitl.harness import SitlFlightOptions, fly_on_sitl
+
     chosen = {"speedup": args.speedup, "boot_speedup": args.boot_speedup}
     given = {name: value for name, value in chosen.items() if value is not None}
     if args.stock_sensors:

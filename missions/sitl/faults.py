@@ -1,6 +1,7 @@
 """Faults injected into a SITL flight: what a real team meets, made to happen on cue.
 
-Each :class:`FaultPlan` names a drone and the plan time it strikes at (after the release):
+Each :class:`FaultPlan` names a drone and the plan time it strikes at (after the release);
+the harness (:mod:`missions.sitl.harness`) makes it happen:
 
 - ``gps``: its GNSS is switched off (SIM_GPS_DISABLE 1): the fix drops at once, its EKF
   dead-reckons and, seconds later, its failsafe lands it;
@@ -17,19 +18,11 @@ SIM_ parameters are the simulator's own: on a real vehicle these faults just hap
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Any, Literal
-
-from missions.autopilots.ardupilot import COPTER_MODES
-from missions.execution.executor import Executor
-from missions.mavlink.guided import set_mode_message
-from missions.mavlink.params import set_parameters
-from missions.mavlink.policy import RetryPolicy
+from dataclasses import dataclass
+from typing import Literal
 
 FaultName = Literal["gps", "link", "mode", "motor", "late"]
 KINDS: tuple[FaultName, ...] = ("gps", "link", "mode", "motor", "late")
-#: The motor that fails (SIM_ENGINE_FAIL counts motors from 0).
-FAILING_MOTOR = 0
 
 
 @dataclass(frozen=True)
@@ -56,22 +49,3 @@ class FaultPlan:
             raise ValueError(f"{text!r}: expected KIND:DRONE:AT[:VALUE]")
         value = float(parts[3]) if len(parts) == 4 else 0.0
         return cls(parts[0], int(parts[1]), float(parts[2]), value)  # type: ignore[arg-type]
-
-
-def inject(fault: FaultPlan, executor: Executor, policy: RetryPolicy) -> dict[str, Any]:
-    """Make ``fault`` happen now; returns what was done (for the flight record)."""
-    k = fault.drone - 1
-    link = executor.links[k]
-    done: dict[str, Any] = asdict(fault)
-    if fault.kind == "gps":
-        set_parameters(link, {"SIM_GPS_DISABLE": 1.0}, policy)
-    elif fault.kind == "link":
-        link.mute()
-        executor.lose_link(fault.drone)
-    elif fault.kind == "mode":
-        link.send(set_mode_message(COPTER_MODES["BRAKE"], link.target))
-    elif fault.kind == "motor":
-        set_parameters(
-            link, {"SIM_ENGINE_FAIL": float(FAILING_MOTOR), "SIM_ENGINE_MUL": fault.value}, policy
-        )
-    return done

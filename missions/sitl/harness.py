@@ -39,8 +39,9 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
+from missions.autopilots.ardupilot import COPTER_MODES
 from missions.execution.executor import Executor
 from missions.execution.group_clock import RatePolicy
 from missions.execution.missions import MissionsExecutor
@@ -54,11 +55,13 @@ from missions.flight_report.record import EXECUTION_FILE, FlightRecord, VehicleR
 from missions.mavlink.commands import set_message_interval
 from missions.mavlink.errors import MavlinkError
 from missions.mavlink.fleet import Fleet, on_every_vehicle
+from missions.mavlink.guided import set_mode_message
+from missions.mavlink.params import set_parameters
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.tlog import StretchedClock, TlogWriter
 from missions.mavlink.transport import VehicleLink
 from missions.sitl.errors import SitlError
-from missions.sitl.faults import FaultPlan, inject
+from missions.sitl.faults import FaultPlan
 from missions.sitl.plan_files import FlightPlanFiles, Mode
 from missions.sitl.process import SitlGroup, SitlHome
 from missions.sitl.settings import SitlSettings
@@ -80,6 +83,8 @@ RECORDED_STREAMS = (
 )
 #: The common clock and the pace: SYSTEM_TIME every this many simulated seconds.
 SYSTEM_TIME_INTERVAL_S = 0.5
+#: The motor a ``motor`` fault weakens (SIM_ENGINE_FAIL counts motors from 0).
+FAILING_MOTOR = 0
 
 
 @dataclass(frozen=True)
@@ -385,7 +390,7 @@ def _execute(
         elapsed = now - record.start
         while pending and elapsed >= pending[0].at:
             fault = pending.pop(0)
-            injected.append(inject(fault, executor, policy) | {"time": executor.present()})
+            injected.append(_inject(fault, executor, policy) | {"time": executor.present()})
         if executor.stopped:
             stopped_at = stopped_at or now
             if now - stopped_at >= options.hold_after_stop_s + 1.0:
@@ -404,6 +409,25 @@ def _execute(
         raise SitlError(f"{executor.mode} flight did not end within {2.0 * duration + 60.0:.0f} s")
     executor.stop()
     return injected
+
+
+def _inject(fault: FaultPlan, executor: Executor, policy: RetryPolicy) -> dict[str, Any]:
+    """Make ``fault`` happen now; returns what was done (for the flight record)."""
+    k = fault.drone - 1
+    link = executor.links[k]
+    done: dict[str, Any] = asdict(fault)
+    if fault.kind == "gps":
+        set_parameters(link, {"SIM_GPS_DISABLE": 1.0}, policy)
+    elif fault.kind == "link":
+        link.mute()
+        executor.lose_link(fault.drone)
+    elif fault.kind == "mode":
+        link.send(set_mode_message(COPTER_MODES["BRAKE"], link.target))
+    elif fault.kind == "motor":
+        set_parameters(
+            link, {"SIM_ENGINE_FAIL": float(FAILING_MOTOR), "SIM_ENGINE_MUL": fault.value}, policy
+        )
+    return done
 
 
 def _retreat(executor: Executor, injected: list[dict], pace: float) -> bool:

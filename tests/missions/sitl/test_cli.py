@@ -27,3 +27,18 @@ def test_a_bad_speedup_is_refused_with_its_name(args, message, tmp_path):
     assert message in done.stderr
     assert "Traceback" not in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_the_process_that_only_starts_the_flight_does_not_load_its_stack():
+    """``fly-sitl`` runs itself again in a private network namespace; the first process
+    parses the command line and starts the second, so it must not load the flight's stack
+    (MAVLink, the autopilot model's kernels, the report), which took it 2-4 s."""
+    probe = (
+        "import sys; from flycrane.cli import build_parser; "
+        "build_parser(['fly-sitl', 'task', '--fault', 'motor:1:5:0.8']).parse_args("
+        "['fly-sitl', 'task', '--fault', 'motor:1:5:0.8']); "
+        "print(sorted(m for m in ('missions.sitl.harness', 'missions.flight_report', "
+        "'missions.execution.executor', 'pymavlink.mavutil', 'numba') if m in sys.modules))"
+    )
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == "[]"
