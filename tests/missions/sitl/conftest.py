@@ -24,6 +24,6 @@ def puzzle(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def puzzle_one_clearance(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The Puzzle kept at the model's one clearance (``mission.robust_clearance`` false):
     the plan the missions mode's in-step bound was set on. On the default, robust Puzzle
-    plans the missions mode's pairs err 5.6-8.2 cm at p95, at that 8 cm bound
-    (BENCHMARKS.md "The missions mode on robust plans")."""
+    plans the missions mode's pairs err beyond that bound, as each drone's own clock drifts
+    (BENCHMARKS.md "Execution modes on the default plans")."""
     return plan("puzzle", 2, tmp_path_factory.mktemp("puzzle_one_clearance"), False)
