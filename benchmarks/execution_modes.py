@@ -11,8 +11,10 @@ Each (scene, seed) is planned once by ``flycrane plan`` (the default planner, or
 ``flycrane fly-sitl --mode MODE`` (its own private network namespace, simulators stopped by
 PID; ``--lead`` passed on). With ``--faults K``, each flight gets one fault drawn from a
 generator seeded by the task's seed: a kind among ``gps``, ``link``, ``mode`` and ``motor``
-(0.8 of one motor's thrust), a drone, and a plan time between 20 % and 70 % of the plan;
-``--fault-kinds`` keeps the drones and times and draws the kind among fewer. The conditions a
+(0.8 of one motor's thrust), a drone, a plan time between 20 % and 70 % of the plan and,
+drawn last, which of the quad's four motors weakens (``--motor`` fixes it: ``--motor 1`` is
+what runs before 2026-11-28 night flew); ``--fault-kinds`` keeps the drones and times and
+draws the kind among fewer. The conditions a
 user would fly in: ``--stock-sensors`` and ``--parameter`` (SITL's wind) pass to fly-sitl.
 Figures are the flight report's (true positions from SIM_STATE, estimates from the
 autopilots, one common clock); BENCHMARKS.md ("Execution in step") records the runs. Results
@@ -44,15 +46,18 @@ def plan(scene: str, seed: int, out: Path, planner: dict, mission: dict) -> dict
     return json.loads(summary_file.read_text())
 
 
-def fault_of(seed: int, duration: float, kinds: tuple[str, ...] = FAULT_KINDS) -> str:
+def fault_of(
+    seed: int, duration: float, kinds: tuple[str, ...] = FAULT_KINDS, motor: int | None = None
+) -> str:
     """One fault for a flight, drawn from ``seed`` (module docstring). With fewer
     ``kinds``, the drone and the time are the same as with all four: a drawn kind not
-    among them is replaced by one that is."""
+    among them is replaced by one that is; ``motor`` fixes the weak motor, else drawn."""
     draw = random.Random(seed)
     kind, drone = draw.choice(FAULT_KINDS), draw.randint(1, 3)
     kind = kind if kind in kinds else kinds[FAULT_KINDS.index(kind) % len(kinds)]
     at = round(draw.uniform(0.2, 0.7) * duration, 1)
-    return f"{kind}:{drone}:{at}" + (":0.8" if kind == "motor" else "")
+    weak = motor or draw.randint(1, 4)
+    return f"{kind}:{drone}:{at}" + (f":0.8:{weak}" if kind == "motor" else "")
 
 
 def fly(
@@ -169,6 +174,8 @@ def main() -> None:
         default=FAULT_KINDS,
         help="the kinds drawn (the same drones and times as with all four)",
     )
+    parser.add_argument("--motor", type=int, choices=(1, 2, 3, 4),
+                        help="the motor a motor fault weakens (default: drawn)")  # fmt: skip
     parser.add_argument(
         "--stock-sensors",
         action="store_true",
@@ -204,7 +211,8 @@ def main() -> None:
                 print(f"{scene} {seed}: no mission: {summary['reason'][:160]}", flush=True)
                 continue
             duration = summary["mission"]["duration"]
-            fault = fault_of(seed, duration, tuple(args.fault_kinds)) if args.faults else None
+            kinds = tuple(args.fault_kinds)
+            fault = fault_of(seed, duration, kinds, args.motor) if args.faults else None
             for mode in args.modes:
                 name = mode + (f"-{fault.replace(':', '_')}" if fault else "")
                 name += f"-lead{args.lead[0]:g}_{args.lead[1]:g}" if args.lead else ""

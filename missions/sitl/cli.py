@@ -3,7 +3,7 @@ the flight.
 
 ``--mode`` says who flies the plan (:mod:`missions.execution`): ``missions`` (the
 autopilots' own waypoint missions), ``stream`` (the ground, from one clock) or ``onboard``
-(a Lua player on each drone). ``--fault KIND:DRONE:AT[:VALUE]`` injects a fault
+(a Lua player on each drone). ``--fault KIND:DRONE:AT[:VALUE[:MOTOR]]`` injects a fault
 (:mod:`missions.sitl.faults`); ``--stock-sensors`` flies SITL's sensors as they come (no
 barometer calibration, gyro drift on).
 
@@ -162,9 +162,11 @@ def register(commands: argparse._SubParsersAction) -> None:
         help="SITL's sensors as they come: no barometer calibration, gyro drift on",
     )  # fmt: skip
     command.add_argument(
-        "--fault", type=_fault, action="append", default=[], metavar="KIND:DRONE:AT[:VALUE]",
+        "--fault", type=_fault, action="append", default=[],
+        metavar="KIND:DRONE:AT[:VALUE[:MOTOR]]",
         help=f"inject a fault ({', '.join(KINDS)}) on drone 1-3 at plan time AT [s]; VALUE: "
-        "a motor's thrust fraction, or a late start [s]",
+        "a motor's thrust fraction, or a late start [s]; MOTOR: which motor weakens, 1-4 as "
+        "ArduCopter numbers them (default 1: SITL's + frame's right arm)",
     )  # fmt: skip
     command.add_argument(
         "--on-fault", choices=("hold", "retreat"), default="hold",

@@ -8,8 +8,11 @@ the harness (:mod:`missions.sitl.harness`) makes it happen:
 - ``link``: the ground loses it: nothing more is sent to it (heartbeats included) and the
   executor hears nothing more from it (the logs still record it, for the report);
 - ``mode``: another ground station or a pilot switches it to BRAKE;
-- ``motor``: one motor gives ``value`` of its thrust (SIM_ENGINE_FAIL, SIM_ENGINE_MUL;
-  below about 0.7 SITL's quad cannot stay up, so tests use 0.8);
+- ``motor``: motor ``motor`` gives ``value`` of its thrust (SIM_ENGINE_FAIL, SIM_ENGINE_MUL;
+  below about 0.7 SITL's quad cannot stay up, so tests use 0.8). Which motor says which
+  way the drone tips: SITL's quad is a + frame (FRAME_TYPE 0), whose motor 1 is on the
+  right arm, 2 the left, 3 the front and 4 the back, and the drones fly facing north, so
+  a weak motor 1 tips its drone east;
 - ``late``: it starts ``value`` seconds late (stream and onboard executions hold it at its
   start), as a drone whose hand-over failed would.
 
@@ -28,24 +31,32 @@ KINDS: tuple[FaultName, ...] = ("gps", "link", "mode", "motor", "late")
 @dataclass(frozen=True)
 class FaultPlan:
     """``kind`` strikes drone ``drone`` (1-based) at plan time ``at`` [s]; ``value``: the
-    motor's thrust fraction, or the late start [s]."""
+    motor's thrust fraction, or the late start [s]; ``motor``: which motor weakens, as
+    ArduCopter numbers them (1-4)."""
 
     kind: FaultName
     drone: int
     at: float
     value: float = 0.0
+    motor: int = 1
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"fault kind {self.kind!r}: one of {', '.join(KINDS)}")
         if self.drone not in (1, 2, 3):
             raise ValueError(f"fault drone {self.drone}: 1, 2 or 3")
+        if self.motor not in (1, 2, 3, 4):
+            raise ValueError(f"fault motor {self.motor}: 1-4, as ArduCopter numbers a quad's")
 
     @classmethod
     def parse(cls, text: str) -> FaultPlan:
-        """``KIND:DRONE:AT[:VALUE]``, e.g. ``gps:2:8`` or ``motor:1:5:0.7``."""
+        """``KIND:DRONE:AT[:VALUE[:MOTOR]]``, e.g. ``gps:2:8``, ``motor:1:5:0.7`` (motor 1)
+        or ``motor:1:5:0.8:3``."""
         parts = text.split(":")
-        if len(parts) not in (3, 4):
-            raise ValueError(f"{text!r}: expected KIND:DRONE:AT[:VALUE]")
-        value = float(parts[3]) if len(parts) == 4 else 0.0
-        return cls(parts[0], int(parts[1]), float(parts[2]), value)  # type: ignore[arg-type]
+        if len(parts) not in (3, 4, 5):
+            raise ValueError(f"{text!r}: expected KIND:DRONE:AT[:VALUE[:MOTOR]]")
+        if len(parts) == 5 and parts[0] != "motor":
+            raise ValueError(f"{text!r}: only a motor fault names a motor")
+        value = float(parts[3]) if len(parts) >= 4 else 0.0
+        motor = int(parts[4]) if len(parts) == 5 else 1
+        return cls(parts[0], int(parts[1]), float(parts[2]), value, motor)  # type: ignore[arg-type]

@@ -83,8 +83,6 @@ RECORDED_STREAMS = (
 )
 #: The common clock and the pace: SYSTEM_TIME every this many simulated seconds.
 SYSTEM_TIME_INTERVAL_S = 0.5
-#: The motor a ``motor`` fault weakens (SIM_ENGINE_FAIL counts motors from 0).
-FAILING_MOTOR = 0
 
 
 @dataclass(frozen=True)
@@ -424,8 +422,9 @@ def _inject(fault: FaultPlan, executor: Executor, policy: RetryPolicy) -> dict[s
     elif fault.kind == "mode":
         link.send(set_mode_message(COPTER_MODES["BRAKE"], link.target))
     elif fault.kind == "motor":
+        # SIM_ENGINE_FAIL counts the motors from 0
         set_parameters(
-            link, {"SIM_ENGINE_FAIL": float(FAILING_MOTOR), "SIM_ENGINE_MUL": fault.value}, policy
+            link, {"SIM_ENGINE_FAIL": float(fault.motor - 1), "SIM_ENGINE_MUL": fault.value}, policy
         )
     return done
 

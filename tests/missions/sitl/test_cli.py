@@ -8,6 +8,8 @@ import sys
 
 import pytest
 
+from missions.sitl.faults import FaultPlan
+
 
 @pytest.mark.parametrize(
     ("args", "message"),
@@ -15,6 +17,8 @@ import pytest
         (["--speedup", "0"], "fly-sitl: speedup: Input should be greater than 0"),
         (["--speedup", "-3"], "fly-sitl: speedup: Input should be greater than 0"),
         (["--boot-speedup", "60"], "fly-sitl: boot_speedup: Input should be less than or equal"),
+        (["--fault", "motor:1:5:0.8:5"], "argument --fault: fault motor 5: 1-4"),
+        (["--fault", "gps:1:5:0:2"], "'gps:1:5:0:2': only a motor fault names a motor"),
     ],
 )
 def test_a_bad_speedup_is_refused_with_its_name(args, message, tmp_path):
@@ -27,6 +31,11 @@ def test_a_bad_speedup_is_refused_with_its_name(args, message, tmp_path):
     assert message in done.stderr
     assert "Traceback" not in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_a_motor_fault_names_its_motor_or_weakens_motor_1():
+    assert FaultPlan.parse("motor:2:7.5:0.8:3") == FaultPlan("motor", 2, 7.5, 0.8, motor=3)
+    assert FaultPlan.parse("motor:2:7.5:0.8").motor == 1
 
 
 def test_the_process_that_only_starts_the_flight_does_not_load_its_stack():
