@@ -2,10 +2,11 @@
 
 A drone whose attitude leaves what its own controller asks for (a weak motor, a broken
 propeller: :attr:`~.team.FaultKind.ATTITUDE`) stops the team, or weakens while the team
-holds after another fault, but it cannot stop where it is told: with one motor short of
-thrust it runs out of roll authority and swings away from its stop before it comes back.
-Braked at their own stops, the other two let the cables go slack or the platform tilt
-past its bound (BENCHMARKS.md "A weak motor", "A weak motor during a hold").
+holds after another fault, but it cannot stop where it is told: with a weak motor its
+attitude lags its controller's for seconds, though its motors have thrust to spare, and it
+swings away from its stop before it comes back. Braked at their own stops, the other two
+let the cables go slack or the platform tilt past its bound (BENCHMARKS.md "A weak motor",
+"A weak motor during a hold", "Which motor weakens").
 
 Where the ground flies the drones (the stream executor) it moves the other two with it,
 as little as keeps the load safe with room to spare: every :data:`ROOM_PERIOD_S` the
