@@ -12,10 +12,10 @@ Each (scene, seed) is planned once by ``flycrane plan`` (the default planner, or
 PID; ``--lead`` passed on). With ``--faults K``, each flight gets one fault drawn from a
 generator seeded by the task's seed: a kind among ``gps``, ``link``, ``mode`` and ``motor``
 (0.8 of one motor's thrust), a drone, a plan time between 20 % and 70 % of the plan and,
-drawn last, which of the quad's four motors weakens (``--motor`` fixes it: ``--motor 1`` is
-what runs before 2026-11-28 night flew); ``--fault-kinds`` keeps the drones and times and
-draws the kind among fewer. The conditions a
-user would fly in: ``--stock-sensors`` and ``--parameter`` (SITL's wind) pass to fly-sitl.
+drawn last, which of the quad's four motors weakens (``--motor`` fixes it; ``--motor 1``
+repeats the runs made before the motor was drawn); ``--fault-kinds`` keeps the drones and
+times and draws the kind among fewer. The conditions a user would fly in:
+``--stock-sensors`` and ``--parameter`` (SITL's wind, the vehicles' gains) pass to fly-sitl.
 Figures are the flight report's (true positions from SIM_STATE, estimates from the
 autopilots, one common clock); BENCHMARKS.md ("Execution in step") records the runs. Results
 are kept in ``--out``: a rerun flies only what is missing. """
