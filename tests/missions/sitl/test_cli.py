@@ -21,7 +21,7 @@ from missions.sitl.faults import FaultPlan
         (["--fault", "gps:1:5:0:2"], "'gps:1:5:0:2': only a motor fault names a motor"),
     ],
 )
-def test_a_bad_speedup_is_refused_with_its_name(args, message, tmp_path):
+def test_a_bad_argument_is_refused_with_its_name(args, message, tmp_path):
     done = subprocess.run(
         [sys.executable, "-m", "flycrane.cli", "fly-sitl", str(tmp_path), "--out",
          str(tmp_path / "out"), "--shared-network", *args],
