@@ -82,9 +82,13 @@ def read_sitl_flight(flight_dir: Path) -> SitlFlight:
     else:
         releases = releases_on_common_clock(vehicles, start=record.start)
         start = record.start
-        last = min(
-            releases.mission_time(k, v.estimated.time[-1:])[0] for k, v in enumerate(vehicles)
-        )
+        ends = [releases.mission_time(k, v.estimated.time[-1:])[0] for k, v in enumerate(vehicles)]
+        last = min(ends)
+        if last <= 0.0:  # a team stop before the plan's clock ran, and no log after it
+            name = vehicles[ends.index(last)].name
+            raise AlignmentError(
+                f"{name}: its log ends {-last:.2f} s before the plan's start: no flight to judge"
+            )
         trajectory = TaskDirectory(Path(flight.task_dir)).trajectory()
         plan = plan.executed(trajectory, record.clock(), flight.mode, float(last))
     return SitlFlight(flight, record, plan, vehicles, releases, start)

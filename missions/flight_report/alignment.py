@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from flycrane.errors import FlyCraneError
 from missions.flight_report.vehicle_log import VehicleLog
 
 
@@ -49,8 +50,8 @@ class Releases:
         return self.vehicle_time[drone] + (mission_time - self.common_time[drone])
 
 
-class AlignmentError(ValueError):
-    """A drone's log does not show its release."""
+class AlignmentError(FlyCraneError, ValueError):
+    """The drones' logs cannot be laid on one clock from the plan's start or release."""
 
 
 def _released(vehicle: VehicleLog, release_seq: int) -> tuple[float, float]:

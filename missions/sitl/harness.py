@@ -6,7 +6,9 @@ missions"), with the simulator's own additions marked:
 1. start three simulators homed on the ground below each drone's start (seq 0 of its
    mission), their clocks from one epoch (``--start-time``) [SITL];
 2. connect, ask for GLOBAL_POSITION_INT, MISSION_CURRENT, SYSTEM_TIME and, from SITL,
-   SIM_STATE (the simulator's true position), and wait for every vehicle's estimate;
+   SIM_STATE (the simulator's true position), and wait for every vehicle's estimate (a
+   boot faster than the flight gets them at a rate its wall time can read, the flight at
+   ``stream_hz``);
 3. set the parameters of the plan (``drone{k}.parm``), each confirmed, plus ARMING_CHECK
    0 [SITL: no RC] (a test may set wrong ones on purpose);
 4. upload each mission with read-back verification (``onboard``: the player's mission,
@@ -225,14 +227,8 @@ def _fly(
 ) -> FlightRecord:
     links = fleet.links
     sim = settings.speedup
-
-    def streams(link: VehicleLink) -> None:
-        for name in RECORDED_STREAMS:
-            set_message_interval(link, name, 1.0 / options.stream_hz, policy)
-        set_message_interval(link, "SYSTEM_TIME", SYSTEM_TIME_INTERVAL_S, policy)
-        set_message_interval(link, "EKF_STATUS_REPORT", 0.1, policy)
-
-    on_every_vehicle(links, "stream", streams)
+    # through the boot, no more messages per wall second than the flight's pace will bring
+    _record(links, options.stream_hz * min(1.0, sim / clock.speedup), policy)
     wait_for(
         links,
         ("EKF_STATUS_REPORT",),
@@ -267,6 +263,7 @@ def _fly(
     if readiness.ready:
         if clock.speedup != sim:
             _change_pace(fleet, sim, clock, rates)
+        _record(links, options.stream_hz, policy)  # the readiness check asked for less
         injected = _execute(executor, plan, options, policy, pace)
         (out_dir / EXECUTION_FILE).write_text(
             json.dumps(executor.record.as_dict() if executor.record else {}, indent=2) + "\n",
@@ -310,6 +307,19 @@ def _fly(
         refused=tuple(readiness.reasons),
         faults=tuple(injected),
     )
+
+
+def _record(links: Sequence[VehicleLink], hz: float, policy: RetryPolicy) -> None:
+    """Ask every vehicle for :data:`RECORDED_STREAMS` at ``hz`` [per simulated second],
+    the clock and the estimate's status at their own rates."""
+
+    def streams(link: VehicleLink) -> None:
+        for name in RECORDED_STREAMS:
+            set_message_interval(link, name, 1.0 / hz, policy)
+        set_message_interval(link, "SYSTEM_TIME", SYSTEM_TIME_INTERVAL_S, policy)
+        set_message_interval(link, "EKF_STATUS_REPORT", 0.1, policy)
+
+    on_every_vehicle(links, "stream", streams)
 
 
 def _change_pace(fleet: Fleet, speedup: float, clock: StretchedClock, rates: RateMeter) -> None:

@@ -12,6 +12,7 @@ within the plan's margins and the drones in step). The MCAP log is read back wit
 from __future__ import annotations
 
 import json
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -19,8 +20,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from pymavlink.dialects.v20 import ardupilotmega
 
+from flycrane.cli import main
 from flycrane.planning.planners import PlannerOptions
+from missions.execution.record import ExecutionRecord
+from missions.flight_report.record import EXECUTION_FILE, FlightRecord, VehicleRecord
 from missions.mock.config import Imperfections
 from missions.task.spec import TaskSpec
 from tests.missions.mock.test_replay import Exported, export, fly, late_drones
@@ -102,3 +107,39 @@ def test_a_set_down_load_may_rest_on_its_surfaces_through_the_final_hold(
         estimated["least_clearance_at"] >= exported.set_down["start_time"]
         and any(s in estimated["least_clearance_bodies"] for s in exported.set_down["surfaces"])
     )
+
+
+def test_a_clocked_flight_whose_logs_end_before_its_start_is_named_not_a_traceback(
+    rescue, tmp_path, capsys
+):
+    """A stream flight whose team stopped before the plan's clock ran and whose logs end
+    there (a ground that fell behind its vehicles' messages): ``flycrane flight-report``
+    names the drone and by how much, and exits 2."""
+    unix0, start = 1.8e9, 1.8e9 + 10.0
+    for k, mission in enumerate(rescue.missions, start=1):
+        mav = ardupilotmega.MAVLink(None, srcSystem=k)
+        with (tmp_path / f"drone{k}.tlog").open("wb") as log:
+            for i in range(50):  # 5 s at 10 Hz, drone k's log ending k / 10 s earlier
+                boot_ms = 100 * (i + 10 - k)
+                messages = [
+                    mav.system_time_encode(int((unix0 + boot_ms / 1000) * 1e6), boot_ms),
+                    mav.global_position_int_encode(
+                        boot_ms, mission.items[0].x, mission.items[0].y, 0, 0, 0, 0, 0, 0
+                    ),
+                ]
+                for message in messages:
+                    log.write(struct.pack(">Q", int((unix0 + boot_ms / 1000) * 1e6)))
+                    log.write(message.pack(mav))
+    vehicles = tuple(VehicleRecord(f"drone{k}", k, f"drone{k}.tlog", 1.0, 0.0, 0.0)
+                     for k in (1, 2, 3))  # fmt: skip
+    FlightRecord(
+        task_dir=str(rescue.directory), speedup=1.0, hold_seq=rescue.hold_seq,
+        release_seq=rescue.release_seq, end_seq=(0, 0, 0), planned_duration_s=10.0,
+        vehicles=vehicles, parameters={}, release_delays=(0.0, 0.0, 0.0),
+        parameter_differences=(), mode="stream",
+    ).write(tmp_path)  # fmt: skip
+    record = ExecutionRecord(mode="stream", start=start, duration=10.0)
+    (tmp_path / EXECUTION_FILE).write_text(json.dumps(record.as_dict()))
+    assert main(["flight-report", str(tmp_path)]) == 2
+    # drone 3's log ends first, at 5.6 s of its boot and of the UNIX time from unix0
+    assert "drone3: its log ends 4.40 s before the plan's start" in capsys.readouterr().err
