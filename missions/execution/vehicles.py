@@ -142,6 +142,14 @@ class VehicleState:
             elif kind == "GPS_GLOBAL_ORIGIN":
                 self.origin = (msg.latitude * DEGREE_UNIT, msg.longitude * DEGREE_UNIT)
 
+    def forget_clock_before(self, at: float) -> None:
+        """Forget the readings of the vehicle's clock received before ground monotonic time
+        ``at``: its pace changed then (a simulator's SIM_SPEEDUP), and a reading carried
+        forward at the pace would misjudge its present."""
+        with self._lock:
+            recent = [stamp for stamp in self._stamps if stamp[1] >= at]
+            self._stamps = deque(recent, maxlen=STAMPS)
+
     def boot_time(self, now: float | None = None, capped: bool = True) -> float | None:
         """The vehicle's boot time [s] at ground monotonic time ``now`` (module docstring;
         not ``capped``: carried forward however old its last message, what a clock that

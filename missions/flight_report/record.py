@@ -26,6 +26,10 @@ class VehicleRecord:
     rate: float  #: achieved simulated seconds per wall second
     release_sent_s: float  #: when its release was sent [s on the logs' time base]
     release_confirmed_s: float  #: when MISSION_CURRENT confirmed it [s, same base]
+    #: how far its clock led the latest vehicle's before the release [s of simulated
+    #: time], as measured before and after the harness brought them together
+    #: (:mod:`missions.sitl.clocks`); empty where the release was refused
+    clock_lead_s: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)

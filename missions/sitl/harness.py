@@ -18,7 +18,9 @@ missions"), with the simulator's own additions marked:
 6. once all three hover steadily at the hold (or, where wind keeps one from it, after
    ``hold_patience_s`` within the position-error model's bounds), check that they position
    themselves as the plan's position-error model assumes
-   (:mod:`missions.execution.readiness`), and refuse the release otherwise;
+   (:mod:`missions.execution.readiness`), and refuse the release otherwise; then bring
+   the simulators' clocks together, as GNSS time is for real vehicles
+   (:mod:`missions.sitl.clocks`) [SITL];
 7. hand the flight to the executor of the mode (:mod:`missions.execution`): ``missions``
    releases the autopilots' own missions, ``stream`` flies the drones on targets from one
    clock, ``onboard`` releases their players; inject the planned faults
@@ -62,6 +64,7 @@ from missions.mavlink.params import set_parameters
 from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.tlog import StretchedClock, TlogWriter
 from missions.mavlink.transport import VehicleLink
+from missions.sitl.clocks import align_clocks
 from missions.sitl.errors import SitlError
 from missions.sitl.faults import FaultPlan
 from missions.sitl.plan_files import FlightPlanFiles, Mode
@@ -260,10 +263,15 @@ def _fly(
     if readiness.ready:
         readiness = _take_off(fleet, watch, plan, options, policy, pace)
     injected: list[dict] = []
+    leads: tuple[dict[str, float], ...] = ()
     if readiness.ready:
         if clock.speedup != sim:
             _change_pace(fleet, sim, clock, rates)
         _record(links, options.stream_hz, policy)  # the readiness check asked for less
+        aligned = align_clocks(links, sim, policy)
+        for vehicle in executor.vehicles:
+            vehicle.forget_clock_before(aligned.settled_at)
+        leads = (aligned.before, aligned.after)
         injected = _execute(executor, plan, options, policy, pace)
         (out_dir / EXECUTION_FILE).write_text(
             json.dumps(executor.record.as_dict() if executor.record else {}, indent=2) + "\n",
@@ -289,6 +297,7 @@ def _fly(
             rate=achieved[link.name],
             release_sent_s=clock.at(report.sent_s[k]) if report else 0.0,
             release_confirmed_s=clock.at(report.confirmed_s[k]) if report else 0.0,
+            clock_lead_s=tuple(lead.get(link.name, 0.0) for lead in leads),
         )
         for k, link in enumerate(links)
     )

@@ -47,6 +47,21 @@ def test_the_least_delayed_message_sets_the_clock(monkeypatch):
     assert state.boot_time() == pytest.approx(10.75)
 
 
+def test_a_clock_held_back_is_read_from_what_came_after(monkeypatch):
+    """Speed-up 2: heard at boot 10 s; its simulator then ran at x1 for 0.1 s of ground time
+    and at x2 again, heard at 10.1 s just after. Carried forward at x2, the first message
+    puts it 0.1 s ahead of where it is; forgotten, the second one reads it right."""
+    ground = [100.0]
+    monkeypatch.setattr("missions.execution.vehicles.time.monotonic", lambda: ground[0])
+    state = VehicleState(Link(), speedup=2.0, max_extrapolation=10.0)
+    heard(state, "LOCAL_POSITION_NED", time_boot_ms=10_000, **STILL)
+    ground[0] += 0.1
+    heard(state, "LOCAL_POSITION_NED", time_boot_ms=10_100, **STILL)
+    assert state.boot_time() == pytest.approx(10.2)
+    state.forget_clock_before(ground[0])
+    assert state.boot_time() == pytest.approx(10.1)
+
+
 def test_the_attitude_error_is_the_tilt_from_what_the_controller_asks_for():
     """Rolled 8 deg right and pitched 1 deg up where its controller asks for 2 and -3:
     sqrt(6^2 + 4^2) deg, whatever the lean both share."""
