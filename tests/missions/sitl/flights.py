@@ -50,8 +50,9 @@ CLOSE_SPEEDUP = 2
 #: Every flight boots, takes off and settles at its hold at x10, where nothing turns on the
 #: ground's tenths of a second (the harness asks for the telemetry at a rate the ground
 #: reads as fast as the flight's), and is then played at its own speed-up
-#: (``--boot-speedup``). Faster, three simulators outrun this machine's two cores
-#: (BENCHMARKS.md "The suite's run time").
+#: (``--boot-speedup``), its three clocks brought together before the release. Faster, three
+#: simulators outrun this machine's two cores (BENCHMARKS.md "The recorded estimates, a
+#: faster boot and the simulators' clocks").
 BOOT_SPEEDUP = 10
 
 
