@@ -89,3 +89,13 @@ def test_the_leading_clocks_are_held_back_until_the_three_agree(fleet):
     # the simulated clocks themselves, not only their measure (whole milliseconds sent)
     boots = [link.boot() for link in fleet]
     assert max(boots) - min(boots) <= LEAD_TOLERANCE_S + 0.002
+
+
+def test_a_clock_that_keeps_its_lead_is_reported(fleet, monkeypatch, caplog):
+    """A simulator starved of the host's cores runs below any pace it is given: its lead
+    stays, and the operator is told."""
+    monkeypatch.setattr(clocks, "set_parameters", lambda link, values, policy: None)
+    with caplog.at_level("WARNING", logger="missions.sitl.clocks"):
+        aligned = align_clocks(fleet, SPEEDUP, RetryPolicy())  # type: ignore[arg-type]
+    assert aligned.after["drone3"] == pytest.approx(0.085, abs=0.002)
+    assert "clock leads before the release" in caplog.text
