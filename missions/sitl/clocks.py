@@ -4,10 +4,10 @@ Each simulator's clock (its SYSTEM_TIME: one epoch for the three, plus its own s
 time) advances at its own pace from its own process start. Three simulators on a 2-core
 host end their boot tens of milliseconds apart, more after a boot faster than the flight
 (BENCHMARKS.md "The recorded estimates, a faster boot and the simulators' clocks"), where
-real vehicles share GNSS time to the microsecond. The ground would read a drone whose
-clock lags as silent by that much, and the report would see it fly late. So before the
-release the harness measures how far each clock leads the latest one, at the flight's
-pace, and runs each that leads slower until the others have caught up.
+real vehicles share GNSS time to the microsecond. The ground reads a drone whose clock
+lags as silent by that much. So before the release the harness measures how far each
+clock leads the latest one, at the flight's pace, and runs each that leads slower until
+the others have caught up.
 """
 
 from __future__ import annotations
