@@ -407,7 +407,9 @@ def _execute(
         elapsed = now - record.start
         while pending and elapsed >= pending[0].at:
             fault = pending.pop(0)
-            injected.append(_inject(fault, executor, policy) | {"time": executor.present()})
+            # its time is when it was sent: a parameter's confirmation comes after it acts
+            struck = executor.present()
+            injected.append(_inject(fault, executor, policy) | {"time": struck})
         if executor.stopped:
             stopped_at = stopped_at or now
             if now - stopped_at >= options.hold_after_stop_s + 1.0:
