@@ -16,6 +16,7 @@ configuration therefore costs a few vectorized operations and no fcl call at all
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,6 +42,9 @@ from flycrane.world.bodies import (
 from flycrane.world.contact import GROUND, Clearance, Contact
 from flycrane.world.scene import SceneSpec
 
+#: fcl's nearest points of a pair are trusted for its gap's gradient when they lie this
+#: close to the pair's distance apart [m]; else central differences.
+NEAREST_TOLERANCE = 1e-6
 #: Step of :meth:`CollisionChecker.gap_gradients`' central differences (m, rad), and its
 #: twelve twists: each axis of translation and rotation, both ways.
 TWIST_STEP = 1e-4
@@ -219,6 +223,14 @@ class CollisionChecker:
         return fcl.CollisionObject(
             body.geometry, fcl.Transform(r @ body.rotation, pose.position[row] + r @ body.center)
         )
+
+    def _robot_geometry(self, kind: str, index: int) -> fcl.CollisionGeometry:
+        """The fcl shape of a robot body."""
+        if kind == "drone":
+            return self._drone
+        if kind == "cable":
+            return self._cables[index]
+        return self.platform_fixed[index].geometry
 
     def _name(self, kind: str, index: int) -> str:
         if kind == "fixed":
@@ -404,32 +416,44 @@ class CollisionChecker:
         crashes in python-fcl 0.7).
         """
         pose = self._pose(as_configurations(q)[:1])
-        return self._closest(pose, self._robot_boxes(pose), 0)[0]
+        boxes = self._robot_boxes(pose)
+        return self._closest(pose, boxes, 0, self._pair_bounds(boxes))[0]
 
     def gap_gradients(self, q: ArrayLike) -> tuple[NDArray, NDArray]:
         """The clearances of configurations (N, 9) (:meth:`clearance`), and each one's
         gradient in a twist of the platform (translation, rotation vector; world axes; the
-        alphas kept, so every robot body moves with the platform): central differences of
-        fcl's distance of the closest pair, the robot body moved by the twist; at the
-        ground, its lowest point's height. (N,), (N, 6); zeros where bodies touch.
-        (fcl's nearest points would spare the calls, but against meshes python-fcl 0.7
-        does not give them in the world frame.)"""
+        alphas kept, so every robot body moves with the platform). Between primitive
+        shapes, from fcl's nearest points a (robot) and b: the unit n = (a - b) / |a - b|
+        and its moment (a - c) x n about the platform's centre c. With a mesh, whose
+        nearest points python-fcl 0.7 does not give in the world frame: central differences
+        of fcl's distance of the closest pair, the robot body moved by the twist. At the
+        ground, its lowest point's height. (N,), (N, 6); zeros where bodies touch."""
         q = as_configurations(q)
         pose = self._pose(q)
         boxes = self._robot_boxes(pose)
+        bounds = self._pair_bounds(boxes)
         request = fcl.DistanceRequest(enable_signed_distance=True)
         gaps, gradients = np.empty(len(q)), np.zeros((len(q), 6))
         for n in range(len(q)):
-            best, (kind, index, o) = self._closest(pose, boxes, n)
+            best, (kind, index, o), result = self._closest(pose, boxes, n, bounds)
             gaps[n] = best.distance
             if not best.distance > 0.0 or not np.isfinite(best.distance):
                 continue
             if o < 0:  # the ground: the lowest point rises by e_z . (dp + dw x r)
                 r = self._lowest_point(kind, index, pose, n) - pose.position[n]
-                gradients[n] = np.concatenate([[0.0, 0.0, 1.0], np.cross(r, [0.0, 0.0, 1.0])])
+                gradients[n] = (0.0, 0.0, 1.0, r[1], -r[0], 0.0)  # r x e_z
                 continue
+            center = pose.position[n]
+            shapes = (self._robot_geometry(kind, index), self.obstacles[o].geometry)
+            if result is not None and not any(isinstance(x, fcl.BVHModel) for x in shapes):
+                a, b = (np.asarray(p, dtype=float) for p in result.nearest_points)
+                apart = math.dist(a, b)
+                if apart > 0.0 and abs(apart - result.min_distance) <= NEAREST_TOLERANCE:
+                    (x, y, z), (u, v, w) = a - center, (a - b) / apart
+                    gradients[n] = (u, v, w, y * w - z * v, z * u - x * w, x * v - y * u)
+                    continue
             mine, obstacle = self._robot_object(kind, index, pose, n), self.obstacles[o].obstacle
-            rotation, origin, center = mine.getRotation(), mine.getTranslation(), pose.position[n]
+            rotation, origin = mine.getRotation(), mine.getTranslation()
             moved = []
             for shift, turn in zip(_TWIST_SHIFTS, _TWIST_TURNS, strict=True):
                 place = center + turn @ (origin - center) + shift
@@ -452,11 +476,34 @@ class CollisionChecker:
         )
         return np.asarray(corners[np.argmin(corners[:, 2])])
 
+    def _pair_bounds(
+        self, boxes: tuple[NDArray, NDArray, list[tuple[str, int]]]
+    ) -> tuple[NDArray, NDArray] | None:
+        """Lower bounds of each robot body's distance to each obstacle, from their world
+        boxes (-inf where the boxes overlap: the bodies may be in contact), (N, B, O), and
+        each row's pairs in their order (N, B * O): none farther than the closest found can
+        be closer. None without obstacles."""
+        if not self.obstacles:
+            return None
+        centers, halves, _ = boxes
+        obstacle_c, obstacle_h = self._obstacle_aabb
+        apart = np.abs(centers[:, :, None] - obstacle_c) - halves[:, :, None] - obstacle_h
+        lower = np.linalg.norm(np.maximum(apart, 0.0), axis=-1) - self._margins
+        lower[(apart <= 0.0).all(axis=-1)] = -np.inf
+        flat = lower.reshape(len(lower), lower.shape[1] * lower.shape[2])
+        return lower, np.argsort(flat, axis=1, kind="stable")
+
     def _closest(
-        self, pose: _Pose, boxes: tuple[NDArray, NDArray, list[tuple[str, int]]], row: int
-    ) -> tuple[Clearance, tuple[str, int, int]]:
-        """:meth:`closest` of a pose's row (``boxes``: its :meth:`_robot_boxes`), and its
-        pair: the robot body's (kind, index) and the obstacle's index, -1 for the ground."""
+        self,
+        pose: _Pose,
+        boxes: tuple[NDArray, NDArray, list[tuple[str, int]]],
+        row: int,
+        bounds: tuple[NDArray, NDArray] | None,
+    ) -> tuple[Clearance, tuple[str, int, int], fcl.DistanceResult | None]:
+        """:meth:`closest` of a pose's row (``boxes``: its :meth:`_robot_boxes`; ``bounds``:
+        their :meth:`_pair_bounds`, None without obstacles), its pair (the robot body's
+        (kind, index) and the obstacle's index, -1 for the ground) and fcl's result of an
+        obstacle's pair (its nearest points)."""
         request = fcl.DistanceRequest(enable_signed_distance=True)
         all_centers, all_halves, kinds = boxes
         centers, halves = all_centers[row], all_halves[row]
@@ -467,25 +514,21 @@ class CollisionChecker:
             body = int(np.argmin(lowest))
             best = Clearance(float(lowest[body] - self._ground_z), self._name(*kinds[body]), GROUND)
             pair = (*kinds[body], -1)
-        if not self.obstacles:
-            return best, pair
-        # Pairs by the distance of their world boxes, a lower bound of their own (none where
-        # the boxes overlap: the bodies may be in contact): none farther than the closest
-        # found can be closer.
-        obstacle_c, obstacle_h = self._obstacle_aabb
-        apart = np.abs(centers[:, None] - obstacle_c) - halves[:, None] - obstacle_h
-        lower = np.linalg.norm(np.maximum(apart, 0.0), axis=-1) - self._margins  # (B, O)
-        lower[(apart <= 0.0).all(axis=-1)] = -np.inf
+        found = None
+        if bounds is None:
+            return best, pair, found
+        lower, order = bounds[0][row], bounds[1][row]
         first = len(kinds) * len(self.obstacles)  # of equally close pairs, the first listed
-        for flat in np.argsort(lower, axis=None, kind="stable"):
+        for flat in order:
             b, o = divmod(int(flat), len(self.obstacles))
             if lower[b, o] > best.distance:
                 break
             (kind, index), obstacle = kinds[b], self.obstacles[o]
             mine = self._robot_object(kind, index, pose, row)
-            gap = fcl.distance(mine, obstacle.obstacle, request, fcl.DistanceResult())
+            result = fcl.DistanceResult()
+            gap = fcl.distance(mine, obstacle.obstacle, request, result)
             gap -= obstacle.margin  # a mesh keeps the clearance from its faces
             if gap < best.distance or (gap == best.distance and flat < first and pair[2] >= 0):
                 best = Clearance(float(gap), self._name(kind, index), obstacle.name)
-                pair, first = (kind, index, o), flat
-        return best, pair
+                pair, first, found = (kind, index, o), flat, result
+        return best, pair, found

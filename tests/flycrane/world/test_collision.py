@@ -207,13 +207,14 @@ def _twisted(q: np.ndarray, twist: np.ndarray) -> np.ndarray:
     return moved
 
 
-@pytest.mark.parametrize("name", ["puzzle", "site"])
+@pytest.mark.parametrize("name", ["puzzle", "rescue", "site"])
 def test_the_closest_pair_is_the_least_over_every_pair(name):
     """:meth:`closest` skips pairs by their boxes; fcl on every robot body against every
-    obstacle (and the ground) finds nothing closer, on configurations of a primitive and a
-    mesh scene. The gap's gradient (:meth:`gap_gradients`, from fcl's nearest points) is
-    the central difference of :meth:`clearance` in a twist of the platform, where the
-    closest pair is an obstacle's."""
+    obstacle (and the ground) finds nothing closer, on configurations of primitive scenes
+    and a mesh scene. The gap's gradient (:meth:`gap_gradients`: from fcl's nearest points
+    between primitives, by central differences with a mesh) is the central difference of
+    :meth:`clearance` in a twist of the platform, where the closest pair is an
+    obstacle's."""
     problem = PlanningProblem.named(name)
     checker = problem.validity.collision
     q = problem.space.sample_uniform(np.random.default_rng(2), 60)
