@@ -8,10 +8,11 @@ autopilot's estimates on the common clock (the flight report's reading,
 :func:`missions.flight_report.read_sitl_flight`) against the plan as given on the group
 clock, between 0.2 s after the start and 0.2 s before the end: the lag [ms] that best lays
 the flown track over the plan (least squares over shifts of 5 ms, east-north and up
-apart; negative: ahead), the median offset [cm] (east, north, up), and the p95 distance
-[cm] as flown and with the lags taken out. A lag that removing changes the p95 little is
-not what the error is made of. BENCHMARKS.md ("Execution in step", "Second run") records
-the runs that set the executors' leads.
+apart; negative: ahead), with ``--offsets`` each shift's mean offset taken out first (a
+steady offset along the motion otherwise reads as lag), the median offset [cm] (east,
+north, up), and the p95 distance [cm] as flown and with the lags taken out. A lag that
+removing changes the p95 little is not what the error is made of. BENCHMARKS.md
+("Execution in step", "Second run") records the runs that set the executors' leads.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ class DroneFigures:
     p95_without_lag: float  #: [m]
 
 
-def drone_figures(flight_dir: Path) -> list[DroneFigures]:
+def drone_figures(flight_dir: Path, offsets: bool = False) -> list[DroneFigures]:
     """Each drone's lags, offset and p95 distances (module docstring)."""
     read = read_sitl_flight(flight_dir)
     plan, figures = read.plan, []
@@ -49,9 +50,10 @@ def drone_figures(flight_dir: Path) -> list[DroneFigures]:
         t, flown = t[kept], series.enu[kept]
         lags, unlagged = {}, plan.drones_at(t)[:, k].copy()
         for name, axes in AXES.items():
-            costs = [
-                np.sum((flown[:, axes] - plan.drones_at(t - s)[:, k][:, axes]) ** 2) for s in SHIFTS
-            ]
+            costs = []
+            for shift in SHIFTS:
+                error = flown[:, axes] - plan.drones_at(t - shift)[:, k][:, axes]
+                costs.append(np.sum((error - error.mean(axis=0) * offsets) ** 2))
             lags[name] = float(SHIFTS[int(np.argmin(costs))])
             unlagged[:, axes] = plan.drones_at(t - lags[name])[:, k][:, axes]
         error = flown - plan.drones_at(t)[:, k]
@@ -69,10 +71,11 @@ def drone_figures(flight_dir: Path) -> list[DroneFigures]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("flights", nargs="+", type=Path)
+    parser.add_argument("--offsets", action="store_true", help="fit each lag with an offset")
     args = parser.parse_args()
     print("flight | drone | lag h, v [ms] | offset e, n, u [cm] | p95 [cm] | p95 lag out [cm]")
     for flight_dir in args.flights:
-        for k, f in enumerate(drone_figures(flight_dir)):
+        for k, f in enumerate(drone_figures(flight_dir, args.offsets)):
             offset = ", ".join(f"{x * 100:+.1f}" for x in f.offset)
             print(
                 f"{flight_dir} | {k + 1} | {f.lag['horizontal'] * 1000:.0f}, "
