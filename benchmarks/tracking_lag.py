@@ -53,7 +53,9 @@ def drone_figures(flight_dir: Path, offsets: bool = False) -> list[DroneFigures]
             costs = []
             for shift in SHIFTS:
                 error = flown[:, axes] - plan.drones_at(t - shift)[:, k][:, axes]
-                costs.append(np.sum((error - error.mean(axis=0) * offsets) ** 2))
+                if offsets:
+                    error = error - error.mean(axis=0)
+                costs.append(np.sum(error**2))
             lags[name] = float(SHIFTS[int(np.argmin(costs))])
             unlagged[:, axes] = plan.drones_at(t - lags[name])[:, k][:, axes]
         error = flown - plan.drones_at(t)[:, k]
