@@ -56,7 +56,7 @@ def main() -> None:
         problem = PlanningProblem.named(scene)
         checker = problem.validity.with_clearance(0.0).collision
         q = near_configurations(problem, args.samples)
-        times: dict[str, list[float]] = {"nearest points": [], "central differences": []}
+        times: dict[str, list[float]] = {name: [] for name in WAYS}
         results = {}
         for _ in range(5):
             for name, tolerance in WAYS.items():
