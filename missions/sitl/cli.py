@@ -151,11 +151,11 @@ def register(commands: argparse._SubParsersAction) -> None:
         "controller lags them by (stream, onboard; default: the mode's, measured on "
         "ArduCopter 4.5.7's default tuning)",
     )  # fmt: skip
-    command.add_argument("--speedup", type=float, help="simulation speed-up (default: 5)")
+    command.add_argument("--speedup", type=float, help="simulation speed-up (default: 2)")
     command.add_argument(
         "--boot-speedup", type=float,
         help="simulation speed-up from the boot to the steady hold before the release "
-        "(default: --speedup)",
+        "(default: 10)",
     )  # fmt: skip
     command.add_argument(
         "--stock-sensors", action="store_true",

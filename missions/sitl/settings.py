@@ -26,7 +26,7 @@ class SitlSettings(BaseSettings):
         None, description="defaults file (default: copter.parm beside the binary)"
     )
     speedup: float = Field(
-        5.0,
+        2.0,
         gt=0,
         le=50,
         description="simulated seconds per wall second (the host's pauses count this many "
@@ -34,12 +34,14 @@ class SitlSettings(BaseSettings):
         "time: faster, the team failsafe is slower in the drones' time)",
     )
     boot_speedup: float | None = Field(
-        None,
+        10.0,
         gt=0,
         le=50,
         description="simulated seconds per wall second from the boot to the steady hold "
         "before the release, where the ground reacts to nothing in tenths of a second (None: "
-        "speedup); the simulators take speedup for the execution (SIM_SPEEDUP)",
+        "speedup); the simulators take speedup for the execution (SIM_SPEEDUP). The "
+        "defaults are the suite's: at x5 a 2-core host's pauses stop stream and onboard "
+        'flights (BENCHMARKS.md "fly-sitl\'s default speed-up")',
     )
     min_rate: float = Field(
         0.2,
