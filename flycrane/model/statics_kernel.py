@@ -238,6 +238,18 @@ def compiled_statics(
     return f0, v, m, cost
 
 
+def statics_margins(
+    system: CableSystem, q: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(cost (N,), margins (N, 3) [N]) of configurations: each one's least slack margin
+    (t_lo - t_min), overload headroom (t_max - t_hi) and thrust margin (h_k - m_k) over its
+    cables and drones (design.md s.5), the least margins of the paper's Fig. 6."""
+    f0, v, m, cost = compiled_statics(system, q)
+    slack = (f0 - v - system.tension_min).min(axis=1)
+    headroom = (system.tension_max - f0 - v).min(axis=1)
+    return cost, np.stack([slack, headroom, (system.max_thrusts - m).min(axis=1)], axis=1)
+
+
 def configuration_cost(
     system: CableSystem, q: ArrayLike, form: CostForm = CostForm.NORMALIZED
 ) -> NDArray[np.float64]:

@@ -49,7 +49,7 @@ from scipy.optimize import minimize
 
 from flycrane.errors import FieldProblem, InputError
 from flycrane.model.cable_system import CableSystem
-from flycrane.model.statics_kernel import compiled_statics
+from flycrane.model.statics_kernel import statics_margins
 from flycrane.planning.interfaces import Validity
 from flycrane.planning.metrics import METRICS_RESOLUTION
 from flycrane.planning.result import TerminationCondition
@@ -104,11 +104,11 @@ def _soft_minimum(t: NDArray[np.float64], softness: float) -> float:
 
 
 def _margins(system: CableSystem, q: NDArray[np.float64]) -> _Margins:
-    f0, v, m, cost = compiled_statics(system, q)
+    cost, margins = statics_margins(system, q)
     return _Margins(
-        slack=float((f0 - v - system.tension_min).min()),
-        headroom=(system.tension_max - f0 - v).min(axis=1),
-        thrust=(system.max_thrusts - m).min(axis=1),
+        slack=float(margins[:, 0].min()),
+        headroom=margins[:, 1],
+        thrust=margins[:, 2],
         cost=float(cost.max()),
     )
 

@@ -57,7 +57,7 @@ from scipy.spatial.transform import Rotation
 from flycrane.errors import FieldProblem, InputError
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.kinematics import matrix_from_tilt_torsion, tilt_torsion_from_matrix
-from flycrane.model.statics_kernel import compiled_statics
+from flycrane.model.statics_kernel import compiled_statics, statics_margins
 from flycrane.planning.interfaces import Validity
 from flycrane.planning.metrics import METRICS_RESOLUTION
 from flycrane.planning.result import TerminationCondition
@@ -125,15 +125,7 @@ def _points(
 def _margins(system: CableSystem, q: NDArray) -> tuple[NDArray, NDArray]:
     """(cost (N,), least slack, headroom and thrust margin (N, 3) [N], -inf where
     infeasible) of configurations."""
-    f0, v, m, cost = compiled_statics(system, q)
-    margins = np.stack(
-        [
-            (f0 - v - system.tension_min).min(axis=1),
-            (system.tension_max - f0 - v).min(axis=1),
-            (system.max_thrusts - m).min(axis=1),
-        ],
-        axis=1,
-    )
+    cost, margins = statics_margins(system, q)
     return cost, np.where(np.isfinite(cost)[:, None], margins, -np.inf)
 
 

@@ -33,14 +33,6 @@ class ShortcutConfig:
             raise InputError([FieldProblem("attempts", "must be >= 0")], "smoothing options")
 
 
-def _point_at(path: NDArray, cumulative: NDArray, space: ConfigurationSpace, s: float):
-    """(segment index, configuration) at arc length s."""
-    segment = int(np.clip(np.searchsorted(cumulative, s, side="right") - 1, 0, len(path) - 2))
-    span = cumulative[segment + 1] - cumulative[segment]
-    t = 0.0 if span <= 0 else (s - cumulative[segment]) / span
-    return segment, space.interpolate(path[segment], path[segment + 1], [t])[0]
-
-
 def shortcut_path(
     path: NDArray[np.float64],
     space: ConfigurationSpace,
@@ -59,8 +51,8 @@ def shortcut_path(
             break
         cumulative = np.concatenate([[0.0], np.cumsum(space.distance(path[:-1], path[1:]))])
         s_a, s_b = np.sort(rng.uniform(0.0, cumulative[-1], 2))
-        i, q_a = _point_at(path, cumulative, space, s_a)
-        j, q_b = _point_at(path, cumulative, space, s_b)
+        i, q_a = space.point_at_length(path, cumulative, s_a)
+        j, q_b = space.point_at_length(path, cumulative, s_b)
         if i == j:
             continue  # both on one straight segment: nothing to shorten
         # The two cut segments are checked too: they lie on valid motions, but the checker
@@ -79,12 +71,4 @@ def shortcut_path(
         if not np.isfinite(added) or added > objective.motion_cost(old):
             continue
         path = np.concatenate([path[: i + 1], q_a[None], q_b[None], path[j + 1 :]])
-    return _without_repeats(path, space)
-
-
-def _without_repeats(path: NDArray[np.float64], space: ConfigurationSpace) -> NDArray:
-    """Drop consecutive duplicate configurations (a shortcut point on a waypoint)."""
-    if len(path) < 2:
-        return path
-    keep = np.concatenate([[True], space.distance(path[:-1], path[1:]) > 1e-12])
-    return path[keep]
+    return space.without_repeats(path)

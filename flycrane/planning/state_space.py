@@ -148,6 +148,23 @@ class ConfigurationSpace:
         ]
         return np.concatenate(pieces)
 
+    def point_at_length(
+        self, path: NDArray[np.float64], cumulative: NDArray[np.float64], s: float
+    ) -> tuple[int, NDArray[np.float64]]:
+        """(segment index, configuration) at length ``s`` along ``path`` (M, 9), whose
+        waypoints lie at the lengths ``cumulative`` (M,) from its start."""
+        segment = int(np.clip(np.searchsorted(cumulative, s, side="right") - 1, 0, len(path) - 2))
+        span = cumulative[segment + 1] - cumulative[segment]
+        t = 0.0 if span <= 0 else (s - cumulative[segment]) / span
+        return segment, self.interpolate(path[segment], path[segment + 1], [t])[0]
+
+    def without_repeats(self, path: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``path`` (M, 9) without consecutive duplicate configurations."""
+        if len(path) < 2:
+            return path
+        keep = np.concatenate([[True], self.distance(path[:-1], path[1:]) > 1e-12])
+        return path[keep]
+
     def contains(self, q: ArrayLike) -> NDArray[np.bool_]:
         """True where q lies inside the sampling bounds, shape (N,)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))

@@ -18,7 +18,6 @@ from numpy.typing import NDArray
 
 from flycrane.errors import FieldProblem, InputError
 from flycrane.model.cable_system import CableSystem
-from flycrane.model.kinematics import matrix_from_tilt_torsion
 from flycrane.quantities import MAX_LENGTH
 from flycrane.world.scene import Box, Cylinder, Mesh, SceneSpec, Sphere
 
@@ -76,7 +75,7 @@ def body_from_shape(
         If the checker could not use the body (:func:`require_usable`); ``field`` names the
         shape in the error (e.g. ``scene.obstacles[2]``).
     """
-    rotation = matrix_from_tilt_torsion(np.array(shape.rotation))
+    rotation = shape.axes
     center = np.array(shape.center, dtype=float)
     offset = np.zeros(3)
     if isinstance(shape, Box):

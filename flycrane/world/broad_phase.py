@@ -81,3 +81,23 @@ def segment_near_boxes(
     low = np.where(flat, np.where(np.abs(p0) <= half, -np.inf, np.inf), np.minimum(t1, t2))
     high = np.where(flat, np.where(np.abs(p0) <= half, np.inf, -np.inf), np.maximum(t1, t2))
     return np.maximum(low.max(axis=-1), 0.0) <= np.minimum(high.min(axis=-1), 1.0)
+
+
+def near_platform_boxes(
+    boxes: BoxSet,
+    position: NDArray[np.float64],
+    rotation: NDArray[np.float64],
+    drones: tuple[NDArray[np.float64], float],
+    cables: tuple[NDArray[np.float64], NDArray[np.float64], float],
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """Which drones (N, 3, B) and cables (N, 6, B) may touch boxes fixed to the platform
+    at poses (``position`` (N, 3), ``rotation`` (N, 3, 3)). ``drones``: world centres
+    (N, 3, 3) and radius; ``cables``: world ends (N, 6, 3) twice and radius. Tested in the
+    platform frame, where the boxes stand still: exact for drones, a slab test for cables."""
+
+    def local(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.einsum("nba,nkb->nka", rotation, x - position[:, None, :])
+
+    (centers, radius), (start, end, margin) = drones, cables
+    near_drones = sphere_touches_boxes(local(centers), radius, boxes)
+    return near_drones, segment_near_boxes(local(start), local(end), margin, boxes)

@@ -41,6 +41,7 @@ from flycrane.world.bodies import (
 )
 from flycrane.world.broad_phase import (
     BoxSet,
+    near_platform_boxes,
     segment_near_boxes,
     sphere_touches_boxes,
     static_boxes,
@@ -226,7 +227,8 @@ class CollisionChecker:
 
         Drones against obstacles: exact sphere-box test (a conservative one for non-box
         obstacles, via their bounding box); cables: slab test of the axis against boxes
-        grown by the radius; platform and payload: world-box overlap.
+        grown by the radius; platform and payload: world-box overlap; drones and cables
+        against the payload's own shapes: the same tests in the platform frame.
         """
         centers, halves, kinds = self._robot_boxes(pose)
         pairs: list[tuple[int, str, int, object]] = []
@@ -254,33 +256,22 @@ class CollisionChecker:
             low = centers[..., 2] - halves[..., 2] <= self._ground_z
             for row, body in zip(*np.nonzero(low), strict=True):
                 pairs.append((int(row), *kinds[body], GROUND))
-        if self.platform_fixed[1:]:
-            pairs += self._payload_pairs(pose)
-        return pairs
-
-    def _payload_pairs(self, pose: _Pose) -> list[tuple[int, str, int, object]]:
-        """Drones and cables near payload shapes, tested in the platform frame where the
-        payload's boxes are fixed (exact for drones against boxes, slab test for cables)."""
-
-        def local(x: NDArray) -> NDArray:
-            return np.einsum("nba,nkb->nka", pose.rotation, x - pose.position[:, None, :])
-
-        s = self.settings
-        boxes = self._payload_boxes
-        pairs: list[tuple[int, str, int, object]] = []
-        drones = sphere_touches_boxes(local(pose.drones), s.drone_radius, boxes)
-        for row, k, j in zip(*np.nonzero(drones), strict=True):
-            pairs.append((int(row), "drone", int(k), ("payload", int(j) + 1)))
-        lengths = self.system.cable_lengths[:, None]
-        start = pose.cable_start + pose.cable_axis * s.cable_clearance_at_platform
-        cables = segment_near_boxes(
-            local(start),
-            local(pose.cable_start + pose.cable_axis * lengths),
-            s.cable_radius,
-            boxes,
-        )
-        for row, i, j in zip(*np.nonzero(cables), strict=True):
-            pairs.append((int(row), "cable", int(i), ("payload", int(j) + 1)))
+        if self.platform_fixed[1:]:  # drones and cables near the payload's shapes
+            s = self.settings
+            lengths = self.system.cable_lengths[:, None]
+            start = pose.cable_start + pose.cable_axis * s.cable_clearance_at_platform
+            end = pose.cable_start + pose.cable_axis * lengths
+            drones, cables = near_platform_boxes(
+                self._payload_boxes,
+                pose.position,
+                pose.rotation,
+                (pose.drones, s.drone_radius),
+                (start, end, s.cable_radius),
+            )
+            for row, k, j in zip(*np.nonzero(drones), strict=True):
+                pairs.append((int(row), "drone", int(k), ("payload", int(j) + 1)))
+            for row, i, j in zip(*np.nonzero(cables), strict=True):
+                pairs.append((int(row), "cable", int(i), ("payload", int(j) + 1)))
         return pairs
 
     def _narrow(self, pose: _Pose, pair, contacts: bool) -> Contact | None:

@@ -32,7 +32,6 @@ import numba
 import numpy as np
 
 from flycrane.model.cable_system import CableSystem
-from flycrane.model.kinematics import matrix_from_tilt_torsion
 from flycrane.model.system_spec import DRONE_CABLES
 from flycrane.world.bodies import platform_prism
 from flycrane.world.bvh import build_hierarchy, stack
@@ -70,7 +69,7 @@ def _primitives(
             if mesh_margin is None:
                 continue
             vertices, faces = shape.triangles(base_dir)
-            pose = matrix_from_tilt_torsion(np.array(shape.rotation, dtype=float))
+            pose = shape.axes
             world = np.asarray(vertices, float) @ pose.T + np.array(shape.center, dtype=float)
             corners = world[np.asarray(faces, dtype=np.int64).reshape(-1, 3)]
             normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
@@ -82,7 +81,7 @@ def _primitives(
             margin += [mesh_margin] * len(corners)
             continue
         center.append(np.array(shape.center, dtype=float))
-        rot.append(matrix_from_tilt_torsion(np.array(shape.rotation, dtype=float)))
+        rot.append(shape.axes)
         if isinstance(shape, Box):
             kind.append(BOX)
             size.append(np.array(shape.size) / 2)

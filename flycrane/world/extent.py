@@ -98,7 +98,7 @@ def extent_from_configuration(
     highs.append(projected.max(axis=1, keepdims=True))
 
     for shape in scene.payload.shapes:
-        axes = matrix_from_tilt_torsion(np.array(shape.rotation))  # shape frame in platform
+        axes = shape.axes  # shape frame in platform
         center = position + local_d @ np.array(shape.center)
         along = local_d @ axes  # d in the shape's frame, (N, 3)
         if isinstance(shape, Box):

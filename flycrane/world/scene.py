@@ -17,9 +17,11 @@ from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
+from numpy.typing import NDArray
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from flycrane.errors import FieldProblem, InputError
+from flycrane.model.kinematics import matrix_from_tilt_torsion
 from flycrane.model.system_spec import SystemSpec, problems_from_validation_error
 from flycrane.quantities import (
     MAX_LENGTH,
@@ -51,6 +53,12 @@ class _Shape(BaseModel):
     )
     center: Point = (0.0, 0.0, 0.0)
     rotation: Orientation = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
+
+    @property
+    def axes(self) -> NDArray[np.float64]:
+        """The shape's orientation in its parent's frame: a rotation matrix, the shape's
+        axes as its columns."""
+        return matrix_from_tilt_torsion(np.array(self.rotation, dtype=float))
 
 
 class Box(_Shape):

@@ -11,7 +11,6 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from scipy.spatial.transform import Rotation
 
 from flycrane.model.cable_system import CABLE_DRONE
-from flycrane.model.kinematics import matrix_from_tilt_torsion
 from flycrane.world.scene import Box, Cylinder, Mesh, SceneSpec, Sphere
 
 GREY, ORANGE, BLUE, RED = (
@@ -41,7 +40,7 @@ def _set_color(color, rgba) -> None:
 def _add_shape(entity, shape, position, rotation, rgba) -> None:
     """A scene shape placed at (position, rotation) of its parent frame."""
     center = position + rotation @ np.array(shape.center)
-    axes = rotation @ matrix_from_tilt_torsion(np.array(shape.rotation))
+    axes = rotation @ shape.axes
     if isinstance(shape, Box):
         primitive = entity.cubes.add()
         primitive.size.x, primitive.size.y, primitive.size.z = shape.size

@@ -87,8 +87,7 @@ def build(
     task, problem, checkers = resolved.task, resolved.problem, resolved.checkers
     options, system = task.mission, problem.system
     stop = limits or PhaseLimits()
-    _check_duration(least_duration(drone_positions_from_configuration(system, path), options),
-                    "at least")  # fmt: skip
+    _check_duration(least_duration(system, path, options), "at least")
     dense = track_from_path(system, problem.space, path, options)
     _check_duration(float(dense.time[-1]), "")
     samples = 2.0 * float(dense.time[-1]) / options.check_resolution

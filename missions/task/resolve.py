@@ -18,7 +18,6 @@ from numpy.typing import NDArray
 from pydantic import ValidationError
 
 from flycrane.errors import FieldProblem, InputError
-from flycrane.model.kinematics import drone_positions_from_configuration
 from flycrane.model.robust_statics import RobustStatics
 from flycrane.model.system_spec import SystemSpec, problems_from_validation_error, system_preset
 from flycrane.planning.algorithms.bitrrt import MESH_REASON, PayloadMeshes
@@ -174,8 +173,8 @@ def resolve_task(
         planned, leg = clear_end(q, checkers.planning, checkers.real, what, approach, hold)
         ends.append(planned)
         legs.append(leg)
-    drones = drone_positions_from_configuration(problem.system, np.stack(ends))
-    least, speed = least_duration(drones, task.mission), task.mission.max_drone_speed
+    least = least_duration(problem.system, np.stack(ends), task.mission)
+    speed = task.mission.max_drone_speed
     if least > MAX_MISSION_DURATION_S:
         raise InputError([FieldProblem(
             "mission.max_drone_speed",

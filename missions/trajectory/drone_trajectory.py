@@ -28,7 +28,8 @@ from scipy.signal import savgol_filter
 
 from flycrane.model.kinematics import matrix_from_tilt_torsion
 from missions.options import MissionOptions
-from missions.trajectory.tracks import Track, time_law
+from missions.trajectory.time_law import time_law, vertical_profile
+from missions.trajectory.tracks import Track
 from missions.trajectory.vertical_legs import VerticalLeg
 
 #: Most time between the trajectory's samples [s] (20 Hz; an executor interpolates between;
@@ -108,7 +109,7 @@ class DroneTrajectory:
         time = time_law(drones, rotations, options, corners=True)
         set_down_start = float(time[-1]) if set_down is not None else None
         if set_down is not None:
-            leg_time, drop = _vertical_profile(
+            leg_time, drop = vertical_profile(
                 set_down.height, options.vertical_leg_speed, options.max_acceleration, step
             )
             lowered = drones[-1] - drop[:, None, None] * np.array([0.0, 0.0, 1.0])
@@ -144,29 +145,3 @@ class DroneTrajectory:
             homes,
             set_down_start,
         )
-
-
-def _vertical_profile(
-    height: float, speed: float, acceleration: float, step: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Time (M,) and distance travelled (M,) of a rest-to-rest move of ``height`` at most
-    ``speed``, speeding up and braking at ``acceleration`` (a trapezoid, or a triangle when
-    the move is too short to reach the speed), sampled finely."""
-    ramp = speed / acceleration
-    if acceleration * ramp * ramp >= height:  # never reaches the speed
-        ramp = float(np.sqrt(height / acceleration))
-        cruise = 0.0
-        speed = acceleration * ramp
-    else:
-        cruise = (height - acceleration * ramp * ramp) / speed
-    total = 2 * ramp + cruise
-    t = np.linspace(0.0, total, max(3, int(np.ceil(total / (step / 4))) + 1))
-    up = np.minimum(t, ramp)
-    down = np.clip(t - ramp - cruise, 0.0, ramp)
-    travelled = (
-        0.5 * acceleration * up**2
-        + speed * np.clip(t - ramp, 0.0, cruise)
-        + speed * down
-        - 0.5 * acceleration * down**2
-    )
-    return t, np.minimum(travelled, height)

@@ -3,8 +3,11 @@ motion ArduCopter will fly with them (design.md section 9, ``missions.autopilots
 
 1. **Waypoints**: the fewest whose straight legs keep the load safe
    (:func:`missions.trajectory.waypoints.reduce_to_waypoints`), as the autopilot stores them
-   (:func:`stored_positions`); a set-down (:mod:`missions.trajectory.vertical_legs`) adds the goal
-   itself after the raised goal the plan ends at, as a last, slow leg.
+   (:func:`~missions.trajectory.waypoints.stored_positions`); a set-down
+   (:mod:`missions.trajectory.vertical_legs`) adds the goal itself after the raised goal the
+   plan ends at, as a last, slow leg.
+Steps 2 to 4 are one attempt each (:mod:`missions.trajectory.modelled_flight`):
+
 2. **Timing**: waypoint times and per-drone limits with which the modelled flights reach
    every waypoint together (:func:`missions.autopilots.speed_solver.solve_fleet`), no
    faster than the drone speed and platform angular rate limits allow.
@@ -25,30 +28,26 @@ motion ArduCopter will fly with them (design.md section 9, ``missions.autopilots
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.model.cable_system import CableSystem
-from flycrane.model.direct_kinematics import configuration_from_drone_positions
-from flycrane.model.kinematics import drone_positions_from_configuration, matrix_from_tilt_torsion
 from missions.autopilots.ardupilot import ArduCopterSettings
-from missions.autopilots.speed_solver import FleetSpeeds, LegFlights, solve_fleet
+from missions.autopilots.speed_solver import LegFlights
 from missions.autopilots.spline import SpeedLimits
-from missions.geodesy import (
-    DEGREE_UNIT,
-    ardupilot_altitude,
-    degrees_to_int,
-    enu_from_geodetic,
-    geodetic_from_enu,
-)
 from missions.options import MissionOptions
+from missions.trajectory.modelled_flight import ModelledFlight, merge_early_legs, model_flight
 from missions.trajectory.motion import DroneMotion, formation_progress
-from missions.trajectory.tracks import Track, rotation_angles
+from missions.trajectory.tracks import Track
 from missions.trajectory.vertical_legs import RAISE_STEP, VerticalLeg
-from missions.trajectory.waypoints import LegCheck, SafetyCheck, check_flight, reduce_to_waypoints
+from missions.trajectory.waypoints import (
+    SafetyCheck,
+    check_flight,
+    reduce_to_waypoints,
+    stored_waypoints,
+)
 
 #: Most splits of legs whose modelled flight failed its check, before giving up.
 MAX_SPLITS = 40
@@ -125,113 +124,6 @@ class FlightPlan:
         )
 
 
-def stored_positions(enu: NDArray[np.float64], options: MissionOptions) -> NDArray[np.float64]:
-    """ENU positions (..., 3) as ArduPilot flies them: latitude and longitude rounded to
-    1e-7 degree (about 1 cm), altitudes truncated to whole centimetres. Speeds planned for
-    unrounded positions would be off by the rounding: on a leg that moves centimetres in one
-    direction, by tens of percent in that direction's limit."""
-    origin = options.origin
-    lat, lon, amsl = geodetic_from_enu(enu, origin)
-    stored = ardupilot_altitude(options.item_altitude(np.asarray(enu, dtype=float)[..., 2], amsl))
-    return enu_from_geodetic(
-        degrees_to_int(lat) * DEGREE_UNIT,
-        degrees_to_int(lon) * DEGREE_UNIT,
-        options.item_amsl(stored),
-        origin,
-    )
-
-
-def _angular_floor(q: NDArray[np.float64], options: MissionOptions) -> NDArray[np.float64]:
-    """Shortest leg durations allowed by the platform's angular rate limit (K-1,) [s]."""
-    return rotation_angles(matrix_from_tilt_torsion(q[:, 3:6])) / options.max_angular_rate
-
-
-@dataclass(frozen=True)
-class _Waypoints:
-    """Waypoints at dense samples ``indices``, plus the set-down's goal if there is one."""
-
-    indices: NDArray[np.int64]
-    q: NDArray[np.float64]  #: (W, 9)
-    drones: NDArray[np.float64]  #: (W, 3, 3) as stored
-    planned: NDArray[np.float64]  #: (W,) planned times [s]
-
-
-def _waypoints(
-    system: CableSystem,
-    track: Track,
-    indices: NDArray[np.int64],
-    options: MissionOptions,
-    set_down: VerticalLeg | None,
-) -> _Waypoints:
-    q, planned = track.q[indices], track.time[indices]
-    if set_down is not None:
-        q = np.concatenate([q, set_down.low[None]])
-        planned = np.append(planned, planned[-1] + set_down.height / options.vertical_leg_speed)
-    drones = stored_positions(drone_positions_from_configuration(system, q), options)
-    return _Waypoints(indices, q, drones, planned)
-
-
-@dataclass(frozen=True)
-class _Attempt:
-    """One timing of a set of waypoints, its modelled motion, and its check."""
-
-    waypoints: _Waypoints
-    fleet: FleetSpeeds
-    motion: DroneMotion
-    check: LegCheck  #: up to the raised goal
-    times: NDArray[np.float64]  #: check times [s]
-    progress: NDArray[np.float64]  #: the dense plan's time at each check time [s]
-    set_down_safe: bool
-
-    def badness(self, options: MissionOptions) -> NDArray[np.float64]:
-        badness = np.maximum(
-            self.check.platform_deviation / options.max_platform_deviation,
-            self.check.cable_length_error / options.max_cable_length_error,
-        )
-        return np.where(self.check.valid, badness, np.inf)
-
-    def passes(self, options: MissionOptions) -> bool:
-        return bool(self.badness(options).max() <= 1.0) and self.set_down_safe
-
-
-def _attempt(
-    system: CableSystem,
-    track: Track,
-    waypoints: _Waypoints,
-    validity: SafetyCheck,
-    landing: SafetyCheck,
-    options: MissionOptions,
-    settings: ArduCopterSettings,
-    flights: LegFlights,
-) -> _Attempt:
-    """Timing for ``waypoints``, the modelled motion, and its check every
-    ``check_resolution`` (module docstring); ``landing`` judges the set-down leg;
-    ``flights`` are those of the plan's earlier attempts."""
-    fleet = solve_fleet(
-        waypoints.drones,
-        waypoints.planned,
-        settings,
-        options.max_drone_speed,
-        _angular_floor(waypoints.q, options),
-        flights,
-    )
-    motion = DroneMotion.from_chains(fleet.flights, fleet.times)
-    step = options.check_resolution
-    dense_end = float(fleet.times[len(waypoints.indices) - 1])
-    times = np.arange(0.0, dense_end + step / 2, step)
-    flown = motion.at(times)
-    progress = formation_progress(track.time, track.drones, flown)
-    check = check_flight(system, track, flown, progress, validity)
-    set_down_safe = True
-    if len(fleet.times) > len(waypoints.indices):  # a set-down: collisions only
-        during = np.arange(dense_end, float(fleet.times[-1]) + step / 2, step)
-        rebuilt = configuration_from_drone_positions(
-            system, motion.at(during), initial=np.repeat(waypoints.q[-2:-1], len(during), 0)
-        )
-        set_down_safe = bool(np.all(rebuilt.converged & landing(rebuilt.q)))
-    return _Attempt(waypoints, fleet, motion, check, times, progress, set_down_safe)
-
-
 def plan_flight(
     system: CableSystem,
     track: Track,
@@ -251,9 +143,9 @@ def plan_flight(
 
     flights = LegFlights()  # attempts differ in a waypoint: the legs before it repeat
 
-    def attempt(indices: NDArray[np.int64]) -> _Attempt:
-        waypoints = _waypoints(system, track, indices, options, set_down)
-        return _attempt(system, track, waypoints, validity, landing, options, settings, flights)
+    def attempt(indices: NDArray[np.int64]) -> ModelledFlight:
+        waypoints = stored_waypoints(system, track, indices, options, set_down)
+        return model_flight(system, track, waypoints, validity, landing, options, settings, flights)
 
     for _ in range(MAX_SPLITS + 1):
         trial = attempt(indices)
@@ -276,7 +168,7 @@ def plan_flight(
     else:
         reason = f"the modelled flight still fails its check after {MAX_SPLITS} splits"
     if not reason and straight.ok:
-        trial = _merge_early_legs(trial, attempt, options)
+        trial = merge_early_legs(trial, attempt, options)
     fleet, waypoints = trial.fleet, trial.waypoints
     vehicles = DroneMotion.from_chains(fleet.flights, fleet.times, vehicles=True)
     lagging = vehicles.at(trial.times)
@@ -302,28 +194,3 @@ def plan_flight(
         if set_down is None
         else SetDown(set_down, float(fleet.times[-2]), float(fleet.times[-1])),
     )
-
-
-def _merge_early_legs(
-    trial: _Attempt, attempt: Callable[[NDArray[np.int64]], _Attempt], options: MissionOptions
-) -> _Attempt:
-    """Drop a waypoint next to a leg some drone flies early while that leaves fewer early
-    legs and the check still passes: such legs are mostly the time law's slow ramps, which
-    a longer leg flies at a settable speed (the autopilot accelerates and brakes by
-    itself). The first and last dense waypoints stay."""
-    for _ in range(len(trial.waypoints.indices)):
-        early = trial.fleet.early
-        if not early:
-            break
-        leg = early[0][1] - 1  # 0-based leg k runs from waypoint k to k + 1
-        last = len(trial.waypoints.indices) - 1
-        for drop in (leg + 1, leg):  # its end, else its start
-            if not 0 < drop < last:
-                continue
-            candidate = attempt(np.delete(trial.waypoints.indices, drop))
-            if len(candidate.fleet.early) < len(early) and candidate.passes(options):
-                trial = candidate
-                break
-        else:
-            break
-    return trial

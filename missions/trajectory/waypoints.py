@@ -16,6 +16,9 @@ The reduction starts from one leg over the whole track and splits a failing leg 
 check time where it fails worst (the sample nearest to it), recursively. A leg that fails
 between two consecutive dense samples cannot be split further: the reduction then reports
 failure as a status.
+
+The waypoints a mission flies are then those positions as the autopilot stores them
+(:func:`stored_positions`): MAVLink's integer coordinates round them to about a centimetre.
 """
 
 from __future__ import annotations
@@ -28,9 +31,20 @@ from numpy.typing import NDArray
 
 from flycrane.model.cable_system import CABLE_DRONE, CableSystem
 from flycrane.model.direct_kinematics import configuration_from_drone_positions
-from flycrane.model.kinematics import platform_points_from_configuration
+from flycrane.model.kinematics import (
+    drone_positions_from_configuration,
+    platform_points_from_configuration,
+)
+from missions.geodesy import (
+    DEGREE_UNIT,
+    ardupilot_altitude,
+    degrees_to_int,
+    enu_from_geodetic,
+    geodetic_from_enu,
+)
 from missions.options import MissionOptions
 from missions.trajectory.tracks import Track
+from missions.trajectory.vertical_legs import VerticalLeg
 
 #: Whether each configuration (N, 9) keeps the load safe (N,): a validity checker's
 #: ``is_safe`` at the clearance a check is judged by.
@@ -156,3 +170,46 @@ def reduce_to_waypoints(
         max_cable_length_error=float(max(c.cable_length_error.max() for c in checks)),
         reason=failure,
     )
+
+
+def stored_positions(enu: NDArray[np.float64], options: MissionOptions) -> NDArray[np.float64]:
+    """ENU positions (..., 3) as ArduPilot flies them: latitude and longitude rounded to
+    1e-7 degree (about 1 cm), altitudes truncated to whole centimetres. Speeds planned for
+    unrounded positions would be off by the rounding: on a leg that moves centimetres in one
+    direction, by tens of percent in that direction's limit."""
+    origin = options.origin
+    lat, lon, amsl = geodetic_from_enu(enu, origin)
+    stored = ardupilot_altitude(options.item_altitude(np.asarray(enu, dtype=float)[..., 2], amsl))
+    return enu_from_geodetic(
+        degrees_to_int(lat) * DEGREE_UNIT,
+        degrees_to_int(lon) * DEGREE_UNIT,
+        options.item_amsl(stored),
+        origin,
+    )
+
+
+@dataclass(frozen=True)
+class StoredWaypoints:
+    """Waypoints at dense samples ``indices``, plus the set-down's goal if there is one."""
+
+    indices: NDArray[np.int64]
+    q: NDArray[np.float64]  #: (W, 9)
+    drones: NDArray[np.float64]  #: (W, 3, 3) as stored
+    planned: NDArray[np.float64]  #: (W,) planned times [s]
+
+
+def stored_waypoints(
+    system: CableSystem,
+    track: Track,
+    indices: NDArray[np.int64],
+    options: MissionOptions,
+    set_down: VerticalLeg | None,
+) -> StoredWaypoints:
+    """The waypoints at dense samples ``indices`` (and the set-down's goal after them), with
+    the drones where the autopilots will store them (:func:`stored_positions`)."""
+    q, planned = track.q[indices], track.time[indices]
+    if set_down is not None:
+        q = np.concatenate([q, set_down.low[None]])
+        planned = np.append(planned, planned[-1] + set_down.height / options.vertical_leg_speed)
+    drones = stored_positions(drone_positions_from_configuration(system, q), options)
+    return StoredWaypoints(indices, q, drones, planned)

@@ -15,7 +15,8 @@ from scipy.spatial.transform import Rotation
 from flycrane.model.kinematics import drone_positions_from_configuration, matrix_from_tilt_torsion
 from flycrane.model.statics import evaluate_statics
 from missions.options import MissionOptions
-from missions.trajectory.tracks import segment_accelerations, track_from_path
+from missions.trajectory.time_law import segment_accelerations
+from missions.trajectory.tracks import track_from_path
 from tests.missions.conftest import CURVED_PATH
 
 HOVER = [0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
@@ -172,9 +173,3 @@ def test_pure_yaw_is_timed_by_the_angular_rate(system, space):
     track = track_from_path(system, space, PATHS["yaw"], options)
     expected = (np.pi / 2) / 0.2 + 0.2 * radius / 0.25
     assert track.duration == pytest.approx(expected, rel=0.005)
-
-
-def test_segment_accelerations_on_a_hand_made_profile():
-    # 1 m/s for 2 s then 3 m/s for 1 s: from rest over 1 s, +2 m/s over 1.5 s, to rest in 0.5 s
-    result = segment_accelerations(np.array([1.0, 3.0]), np.array([2.0, 1.0]))
-    np.testing.assert_allclose(result, [1.0, 2.0 / 1.5, -6.0])
