@@ -25,7 +25,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.errors import FieldProblem, InputError
-from missions.geodesy import ned_from_enu
+from missions.geodesy import geodetic_from_enu, ned_from_enu
+from missions.options import GeodeticOrigin
+from missions.trajectory.drone_trajectory import DroneTrajectory
 
 COLUMNS = "time,north,east,down,v_north,v_east,v_down,a_north,a_east,a_down"
 VERSION = "FlyCrane trajectory v1"
@@ -34,29 +36,27 @@ _SET_DOWN = re.compile(r"set-down from ([-0-9.]+) s")
 
 
 def trajectory_text(
-    drone: int,
-    time: NDArray[np.float64],
-    position: NDArray[np.float64],
-    velocity: NDArray[np.float64],
-    acceleration: NDArray[np.float64],
-    home: tuple[float, float, float],
-    task_name: str = "",
-    set_down_start: float | None = None,
+    trajectory: DroneTrajectory, drone: int, origin: GeodeticOrigin, task_name: str = ""
 ) -> str:
-    """The file of one drone: ``time`` (N,) and home-relative ENU ``position``,
-    ``velocity``, ``acceleration`` (N, 3); ``home`` is (lat, lon [deg], AMSL [m]);
-    ``set_down_start``: when the last leg sets the load down [s]."""
+    """The file of drone ``drone`` (1-based) of ``trajectory``, its home in WGS84 from the
+    task's ``origin``."""
+    k = drone - 1
     rows = np.column_stack(
-        [time, ned_from_enu(position), ned_from_enu(velocity), ned_from_enu(acceleration)]
+        [
+            trajectory.time,
+            ned_from_enu(trajectory.position[:, k]),
+            ned_from_enu(trajectory.velocity[:, k]),
+            ned_from_enu(trajectory.acceleration[:, k]),
+        ]
     )
-    lat, lon, alt = home
+    lat, lon, alt = (float(c[k]) for c in geodetic_from_enu(trajectory.homes, origin))
     out = io.StringIO()
     out.write(f"# {VERSION}: drone {drone} of task {task_name!r}\n")
     out.write(f"# frame: NED [m] from home; home: {lat:.8f}, {lon:.8f}, {alt:.3f} ")
     out.write("(lat, lon [deg], AMSL [m])\n")
     out.write("# time from the release [s]; velocity [m/s]; acceleration [m/s^2]")
-    if set_down_start is not None:
-        out.write(f"; set-down from {set_down_start:.3f} s")
+    if trajectory.set_down_start is not None:
+        out.write(f"; set-down from {trajectory.set_down_start:.3f} s")
     out.write("\n")
     out.write(COLUMNS + "\n")
     np.savetxt(out, rows, fmt=["%.3f"] + ["%.6f"] * 9, delimiter=",")

@@ -12,7 +12,6 @@ from missions.export.formats import mission_files
 from missions.export.mission_mcap import LogInputs, write_mcap
 from missions.export.parameter_file import parameter_file_text
 from missions.export.trajectory_file import trajectory_text
-from missions.geodesy import geodetic_from_enu
 from missions.task.build import BuiltMissions
 from missions.task.directory import MCAP_FILE, PROFILE_FILE, TaskDirectory, mission_file
 from missions.task.limits import PhaseLimits
@@ -50,21 +49,11 @@ def write_files(
     team, why = team_parameters(resolved.position_error.height_source)
     parameters, reasons = {**settings.parameters(), **team}, {**settings.reasons(), **why}
     parm = parameter_file_text(parameters, reasons, PARM_HEADER)
-    trajectory = built.trajectory
-    homes = geodetic_from_enu(trajectory.homes, options.origin)
     files: dict[str, str] = {}
     for mission in built.missions:
-        k = mission.drone - 1
         texts = {**mission_files(mission, options.max_drone_speed), "parm": parm}
         texts["trajectory.csv"] = trajectory_text(
-            mission.drone,
-            trajectory.time,
-            trajectory.position[:, k],
-            trajectory.velocity[:, k],
-            trajectory.acceleration[:, k],
-            (float(homes[0][k]), float(homes[1][k]), float(homes[2][k])),
-            task.name,
-            trajectory.set_down_start,
+            built.trajectory, mission.drone, options.origin, task.name
         )
         files.update({mission_file(mission.drone, s): text for s, text in texts.items()})
     directory.write_tracks(built.tracks)

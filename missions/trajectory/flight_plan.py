@@ -149,7 +149,7 @@ def plan_flight(
 
     for _ in range(MAX_SPLITS + 1):
         trial = attempt(indices)
-        badness = trial.badness(options)
+        badness = trial.check.badness(options)
         if trial.passes(options) or not straight.ok:
             break
         if badness.max() <= 1.0:  # only the set-down fails: nothing to split there

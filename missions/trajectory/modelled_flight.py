@@ -39,15 +39,8 @@ class ModelledFlight:
     progress: NDArray[np.float64]  #: the dense plan's time at each check time [s]
     set_down_safe: bool
 
-    def badness(self, options: MissionOptions) -> NDArray[np.float64]:
-        badness = np.maximum(
-            self.check.platform_deviation / options.max_platform_deviation,
-            self.check.cable_length_error / options.max_cable_length_error,
-        )
-        return np.where(self.check.valid, badness, np.inf)
-
     def passes(self, options: MissionOptions) -> bool:
-        return bool(self.badness(options).max() <= 1.0) and self.set_down_safe
+        return bool(self.check.badness(options).max() <= 1.0) and self.set_down_safe
 
 
 def model_flight(

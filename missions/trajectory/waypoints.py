@@ -61,6 +61,15 @@ class LegCheck:
     times: NDArray[np.float64]  #: (C,) check times [s]
     q: NDArray[np.float64]  #: (C, 9) reconstructed configurations
 
+    def badness(self, options: MissionOptions) -> NDArray[np.float64]:
+        """(C,) the larger of the platform deviation and the cable-length error over its
+        bound, +inf where the configuration is not valid: the check passes where <= 1."""
+        badness = np.maximum(
+            self.platform_deviation / options.max_platform_deviation,
+            self.cable_length_error / options.max_cable_length_error,
+        )
+        return np.where(self.valid, badness, np.inf)
+
 
 @dataclass(frozen=True)
 class WaypointPlan:
@@ -134,11 +143,7 @@ def reduce_to_waypoints(
         check = check_flight(
             system, track, drone_positions_at(np.array([t0, t1]), ends, times), times, validity
         )
-        badness = np.maximum(
-            check.platform_deviation / options.max_platform_deviation,
-            check.cable_length_error / options.max_cable_length_error,
-        )
-        badness = np.where(check.valid, badness, np.inf)
+        badness = check.badness(options)
         if badness.max() <= 1.0 and t1 - t0 <= options.max_leg_duration:
             accepted[i] = (j, check)
             continue

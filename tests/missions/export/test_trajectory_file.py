@@ -10,12 +10,18 @@ import pytest
 
 from flycrane.errors import InputError
 from missions.export.trajectory_file import read_trajectory_text, trajectory_text
+from missions.options import GeodeticOrigin
+from missions.trajectory.drone_trajectory import DroneTrajectory
 
 
 def test_columns_are_north_east_down_of_the_east_north_up_plan():
     time = np.array([0.0, 0.05, 0.1])
     enu = np.array([[1.0, 2.0, 3.0], [1.5, 2.5, 3.5], [2.0, 3.0, 4.0]])
-    text = trajectory_text(2, time, enu, enu * 10, enu * 100, (47.5, 8.5, 488.1), "bridge")
+    three = np.stack([enu * 7, enu, enu * 9], axis=1)  # drone 2 is the second
+    homes = np.array([[5.0, 0.0, 1.0], [0.0, 0.0, 0.0], [-5.0, 0.0, 1.0]])
+    origin = GeodeticOrigin(latitude=47.5, longitude=8.5, altitude=488.1)
+    trajectory = DroneTrajectory(time, three, three * 10, three * 100, homes)
+    text = trajectory_text(trajectory, 2, origin, "bridge")
     lines = text.splitlines()
     assert lines[0] == "# FlyCrane trajectory v1: drone 2 of task 'bridge'"
     rows = list(csv.DictReader(io.StringIO("\n".join(lines[3:]))))
