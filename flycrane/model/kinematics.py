@@ -121,19 +121,27 @@ def drone_positions_in_platform_frame(system: CableSystem, alpha: ArrayLike) -> 
     )
 
 
+def _attachments(system: CableSystem, q: NDArray, r: NDArray) -> NDArray[np.float64]:
+    """b_i = p + R B'_i of checked configurations (N, 9) with their orientations R."""
+    return q[:, None, :3] + np.einsum("nab,ib->nia", r, system.platform_points)
+
+
+def _drones(system: CableSystem, q: NDArray, r: NDArray) -> NDArray[np.float64]:
+    """A_k = p + R a'_k(alpha_k) of checked configurations (N, 9) with their R."""
+    local = drone_positions_in_platform_frame(system, q[:, 6:9])
+    return q[:, None, :3] + np.einsum("nab,nkb->nka", r, local)
+
+
 def platform_points_from_configuration(system: CableSystem, q: ArrayLike) -> NDArray[np.float64]:
     """World positions b_i = p + R B'_i of the six cable attachments, shape (N, 6, 3)."""
     q = as_configurations(q)
-    r = matrix_from_tilt_torsion(q[:, 3:6])
-    return q[:, None, :3] + np.einsum("nab,ib->nia", r, system.platform_points)
+    return _attachments(system, q, matrix_from_tilt_torsion(q[:, 3:6]))
 
 
 def drone_positions_from_configuration(system: CableSystem, q: ArrayLike) -> NDArray[np.float64]:
     """World drone positions A_k = p + R a'_k(alpha_k) (design.md eq. 2), shape (N, 3, 3)."""
     q = as_configurations(q)
-    r = matrix_from_tilt_torsion(q[:, 3:6])
-    local = drone_positions_in_platform_frame(system, q[:, 6:9])
-    return q[:, None, :3] + np.einsum("nab,nkb->nka", r, local)
+    return _drones(system, q, matrix_from_tilt_torsion(q[:, 3:6]))
 
 
 def cable_vectors(
@@ -168,9 +176,5 @@ class Poses:
 def forward_kinematics(system: CableSystem, q: ArrayLike) -> Poses:
     """Orientation, attachment points and drones of configurations q, (9,) or (N, 9)."""
     q = as_configurations(q)
-    return Poses(
-        q,
-        matrix_from_tilt_torsion(q[:, 3:6]),
-        platform_points_from_configuration(system, q),
-        drone_positions_from_configuration(system, q),
-    )
+    r = matrix_from_tilt_torsion(q[:, 3:6])
+    return Poses(q, r, _attachments(system, q, r), _drones(system, q, r))
