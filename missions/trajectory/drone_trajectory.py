@@ -2,7 +2,7 @@
 against plan time, for executors that play it from one clock (:mod:`missions.execution`).
 
 The dense plan (the planned path on its quasi-static time law,
-:mod:`missions.trajectory.tracks`, with every drone's turns at the path's corners within the
+:mod:`missions.trajectory.time_law`, with every drone's turns at the path's corners within the
 acceleration limit too: a drone that flies its velocity and acceleration, unlike one that
 rounds waypoints, has to slow down there), followed by the set-down's slow vertical leg if
 the task has one, is sampled every :data:`SAMPLE_STEP_S`. Positions are the plan's own (linear
