@@ -121,18 +121,20 @@ def test_vehicle_vanishing_mid_upload_is_a_timeout_not_a_success(spawn_mock, fas
     vanished = threading.Event()
 
     def pull_the_plug(msg):
+        # stopped on the link's reader thread, before it reads anything more: a thread of
+        # its own let a loaded host answer the whole upload before the vehicle was gone
         if msg.seq == 5 and not vanished.is_set():
             vanished.set()
-            threading.Thread(target=mock.stop).start()
+            mock.stop()
 
     with VehicleLink(address, fast_policy) as link:
         link.wait_heartbeat()
         link.add_listener(("MISSION_REQUEST",), pull_the_plug)
         with pytest.raises(MavlinkTimeoutError) as error:
             upload_and_verify(link, waypoint_mission(1, 10), fast_policy)
-    # it vanished a few items after item 5 was requested (stopping takes a moment)
+    # it vanished as item 5 was requested: item 5 may have reached it, item 7 cannot
     stage, _, item = error.value.stage.rpartition(" ")
-    assert stage == "upload: MISSION_REQUEST for item" and 6 <= int(item) < 12
+    assert stage == "upload: MISSION_REQUEST for item" and int(item) in (6, 7)
     assert len(mock.mission) < 12  # half a mission on board, and no success reported
 
 
