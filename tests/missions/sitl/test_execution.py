@@ -48,7 +48,11 @@ def test_the_rescue_streamed_from_one_clock_flies_in_step(rescue: Path, tmp_path
     """And the estimates the report judges are recorded at the harness's 50 Hz through the
     flight (a readiness check that asked for 5 Hz once left them there); and the three
     simulators' clocks agree through it, as GNSS time does for real drones (each one's
-    time against the tlog's receipt times, which run at the simulators' pace)."""
+    time against the tlog's receipt times, which run at the simulators' pace). Brought
+    together before the release, they stayed within 4.4 ms over 40 flights on one 2-core
+    host and 21 ms in one flight on another, whose simulators' paces wander by tens of ms
+    over seconds; left apart, they were 40 ms at the median (BENCHMARKS.md, "The recorded
+    estimates, a faster boot and the simulators' clocks")."""
     report = fly(rescue, tmp_path, "--mode", "stream", speedup=CLOSE_SPEEDUP)
     assert_in_step(report)
     assert report["stop"] is None and execution(tmp_path)["faults"] == []
@@ -62,7 +66,7 @@ def test_the_rescue_streamed_from_one_clock_flies_in_step(rescue: Path, tmp_path
         flown = [(t, r) for kind, t, r in times if kind == "GLOBAL_POSITION_INT" and t >= first]
         assert len(flown) >= 0.9 * 50 * (flown[-1][0] - flown[0][0]), (k, len(flown))
         behind.append(float(np.median([r - t for t, r in flown])))
-    assert max(behind) - min(behind) <= 0.015, behind
+    assert max(behind) - min(behind) <= 0.03, behind
 
 
 def test_the_puzzle_streamed_from_one_clock_flies_in_step(puzzle: Path, tmp_path: Path):
