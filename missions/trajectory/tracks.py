@@ -68,8 +68,7 @@ def track_from_path(
     resolution: float = TRACK_RESOLUTION,
 ) -> Track:
     """Dense track of a planned path with its shared time law."""
-    samples = space.discretize_path(path, resolution)
-    poses = forward_kinematics(system, samples)
+    poses = forward_kinematics(system, space.discretize_path(path, resolution))
     step = np.linalg.norm(np.diff(poses.drones, axis=0), axis=-1).max(1)
     poses = poses.rows(np.concatenate([[True], step > 0]))
     if len(poses.q) < 2:
