@@ -42,7 +42,8 @@ from flycrane.model.robust_statics import margins
 from flycrane.model.statics import evaluate_statics
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import ValidityChecker
-from missions.execution.vehicles import VehicleFrame, VehicleState
+from missions.autopilots.location import VehicleFrame
+from missions.execution.vehicles import VehicleState
 from missions.geodesy import enu_from_ned
 from missions.task.spec import TaskSpec
 from missions.trajectory.drone_trajectory import DroneTrajectory

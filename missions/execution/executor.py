@@ -30,12 +30,13 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import NDArray
 
+from missions.autopilots.location import VehicleFrame
 from missions.execution.anchor import Anchor, FormationRoom
 from missions.execution.group_clock import GroupClock
 from missions.execution.options import ExecutionOptions
 from missions.execution.record import ExecutionRecord
 from missions.execution.team import Fault, FaultKind, TeamMonitor
-from missions.execution.vehicles import VehicleFrame, VehicleState
+from missions.execution.vehicles import VehicleState
 from missions.mavlink.commands import send_command, set_message_interval
 from missions.mavlink.errors import MavlinkError
 from missions.mavlink.guided import request_message, set_mode_message

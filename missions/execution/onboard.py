@@ -24,7 +24,6 @@ from missions.autopilots.ardupilot import COPTER_MODES
 from missions.execution.executor import Executor
 from missions.execution.group_clock import Segment
 from missions.export.onboard import player_file
-from missions.geodesy import geodetic_from_enu
 from missions.mavlink.commands import release
 from missions.mavlink.ftp import put_file
 from missions.mavlink.guided import group_time
@@ -64,13 +63,13 @@ class OnboardExecutor(Executor):
         """
         trajectory = self.trajectory
         for k, link in enumerate(self.links):
-            lat, lon, alt = geodetic_from_enu(trajectory.homes[k], self.origin)
             data = player_file(
                 trajectory.time,
                 trajectory.position[:, k],
                 trajectory.velocity[:, k],
                 trajectory.acceleration[:, k],
-                (float(lat), float(lon), float(alt)),
+                trajectory.homes[k],
+                self.origin,
             )
             put_file(link, data, TRAJECTORY_REMOTE, timeout)
 

@@ -24,7 +24,6 @@ from numpy.typing import NDArray
 
 from missions.autopilots.ardupilot import COPTER_MODES
 from missions.execution.executor import Executor
-from missions.geodesy import ned_from_enu
 from missions.mavlink.guided import position_target, set_mode_message
 
 
@@ -64,9 +63,10 @@ class StreamExecutor(Executor):
                 continue
             now = boot + float(vehicle.offset or 0.0)
             p, v, a = self._led(k, now)
-            local = self.frames[k].local_position(p + self.trajectory.homes[k])
+            frame = self.frames[k]
+            local = frame.local_position(p + self.trajectory.homes[k])
             link.send(position_target(round(boot * 1000), link.target, local,
-                                      ned_from_enu(v), ned_from_enu(a)))  # fmt: skip
+                                      frame.local_vector(v), frame.local_vector(a)))  # fmt: skip
 
     def _led(self, k: int, now: float) -> tuple[NDArray, NDArray, NDArray]:
         """Drone k's target :attr:`lead` ahead of its present ``now``: east and north

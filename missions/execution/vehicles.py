@@ -11,8 +11,9 @@ its latest state, kept up to date by its link's reader thread.
   simulator that stalls is not run ahead of).
 - **Frame.** Targets go out in the vehicle's local NED frame (from its EKF origin). The
   trajectory is home-relative (:mod:`missions.trajectory.drone_trajectory`): north and east
-  follow from where the task's ENU frame puts the EKF origin (GPS_GLOBAL_ORIGIN), down from
-  where the vehicle says its home is (HOME_POSITION), as the missions' relative altitudes do.
+  follow from where the task's ENU frame puts the EKF origin (GPS_GLOBAL_ORIGIN), in the
+  vehicle's own metres (:mod:`missions.autopilots.location`), down from where the vehicle
+  says its home is (HOME_POSITION), as the missions' relative altitudes do.
 """
 
 from __future__ import annotations
@@ -21,12 +22,12 @@ import math
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from missions.autopilots.location import VehicleFrame, local_scale
 from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
 from missions.mavlink.transport import VehicleLink
 from missions.options import GeodeticOrigin
@@ -46,33 +47,6 @@ TELEMETRY = (
     "ATTITUDE",
     "NAV_CONTROLLER_OUTPUT",
 )
-
-
-@dataclass(frozen=True)
-class VehicleFrame:
-    """Where a vehicle's local NED frame lies: its EKF origin in the task's ENU frame
-    (horizontally) and its home's local down coordinate."""
-
-    origin_east: float  #: [m] in the task's ENU frame
-    origin_north: float
-    home_down: float  #: HOME_POSITION z: home's down coordinate in the local frame [m]
-    home_up: float  #: the home's height in the task frame (``home_height``) [m]
-
-    def local_position(self, enu: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Task-frame ENU positions (..., 3) in the vehicle's local NED frame."""
-        enu = np.asarray(enu, dtype=float)
-        north = enu[..., 1] - self.origin_north
-        east = enu[..., 0] - self.origin_east
-        down = self.home_down - (enu[..., 2] - self.home_up)
-        return np.stack([north, east, down], axis=-1)
-
-    def task_position(self, ned: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Inverse of :meth:`local_position`."""
-        ned = np.asarray(ned, dtype=float)
-        east = ned[..., 1] + self.origin_east
-        north = ned[..., 0] + self.origin_north
-        up = self.home_down - ned[..., 2] + self.home_up
-        return np.stack([east, north, up], axis=-1)
 
 
 GRAVITY = 9.80665  #: standard gravity [m/s^2]
@@ -208,7 +182,8 @@ class VehicleState:
             lat, lon = self.origin
             home_down = self.home_down
         east, north, _ = enu_from_geodetic(lat, lon, origin.altitude, origin)
-        return VehicleFrame(float(east), float(north), home_down, home_up)
+        scale = local_scale(lat, origin.altitude)
+        return VehicleFrame(float(east), float(north), scale, home_down, home_up)
 
     def estimate(self) -> tuple[float, NDArray[np.float64]] | None:
         """(common time, local NED position) of the last position estimate."""

@@ -7,7 +7,9 @@ from the group clock), then the mission's own last item (the hold, or the landin
 end). The file is the one ``missions/execution/lua/flycrane_player.lua`` reads: little
 endian, a 24-byte header ``"FCT1"``, uint32 rows, float32 step [s], int32 home latitude and
 longitude [1e-7 deg], float32 home altitude AMSL [m], then per row 10 float32: plan time,
-north, east, down [m] from home, velocity [m/s], acceleration [m/s^2].
+north, east, down [m] from home, velocity [m/s], acceleration [m/s^2]. North and east are
+ArduPilot's metres (:mod:`missions.autopilots.location`) from the home as the header rounds
+it, which is where ArduPilot places the home the player adds them to.
 """
 
 from __future__ import annotations
@@ -17,8 +19,16 @@ import struct
 import numpy as np
 from numpy.typing import NDArray
 
+from missions.autopilots.location import local_scale
 from missions.export.items import DroneMission, MavCmd, MavFrame, MissionItem
-from missions.geodesy import degrees_to_int, ned_from_enu
+from missions.geodesy import (
+    DEGREE_UNIT,
+    degrees_to_int,
+    enu_from_geodetic,
+    geodetic_from_enu,
+    ned_from_enu,
+)
+from missions.options import GeodeticOrigin
 
 #: NAV_SCRIPT_TIME's command (param1) that selects the player.
 PLAYER_COMMAND = 1
@@ -32,18 +42,27 @@ def player_file(
     position: NDArray[np.float64],
     velocity: NDArray[np.float64],
     acceleration: NDArray[np.float64],
-    home: tuple[float, float, float],
+    home: NDArray[np.float64],
+    origin: GeodeticOrigin,
 ) -> bytes:
     """One drone's file (module docstring): ``time`` (N,), uniform; home-relative ENU
-    ``position``, ``velocity``, ``acceleration`` (N, 3); ``home`` (lat, lon [deg], AMSL
-    [m])."""
+    ``position``, ``velocity``, ``acceleration`` (N, 3); ``home`` (3,), ENU in the task
+    frame about ``origin``."""
     step = float(time[1] - time[0])
-    lat, lon, alt = home
-    header = HEADER.pack(
-        b"FCT1", len(time), step, int(degrees_to_int(lat)), int(degrees_to_int(lon)), alt
-    )
+    lat, lon, alt = (float(c) for c in geodetic_from_enu(home, origin))
+    lat_int, lon_int = int(degrees_to_int(lat)), int(degrees_to_int(lon))
+    header = HEADER.pack(b"FCT1", len(time), step, lat_int, lon_int, alt)
+    rounded = enu_from_geodetic(lat_int * DEGREE_UNIT, lon_int * DEGREE_UNIT, alt, origin)
+    shift = np.array([*(np.asarray(home)[:2] - rounded[:2]), 0.0])
+    north, east = local_scale(lat, alt)
+    scale = np.array([east, north, 1.0])  # ENU axes
     rows = np.column_stack(
-        [time, ned_from_enu(position), ned_from_enu(velocity), ned_from_enu(acceleration)]
+        [
+            time,
+            ned_from_enu((position + shift) * scale),
+            ned_from_enu(velocity * scale),
+            ned_from_enu(acceleration * scale),
+        ]
     ).astype("<f4")
     return header + rows.tobytes()
 

@@ -3,8 +3,11 @@
 Any tlog works: ours (SITL flights, :mod:`missions.sitl.harness`) or a ground station's from
 a real flight. Per drone this reads
 
-- the autopilot's estimate: GLOBAL_POSITION_INT (position, altitude AMSL, velocity), timed
-  by its own ``time_boot_ms``;
+- the autopilot's estimate: LOCAL_POSITION_NED placed by GPS_GLOBAL_ORIGIN and
+  HOME_POSITION in the vehicle's own metres (:class:`~missions.autopilots.location.
+  VehicleFrame`, as the executors place their targets), timed by its own ``time_boot_ms``;
+  where a log lacks them, GLOBAL_POSITION_INT, whose whole 1e-7 degrees round it by up to
+  0.6 cm;
 - the truth where a simulator reports it: SIM_STATE (``lat_int``/``lon_int``, altitude AMSL);
 - the mission's progress: MISSION_CURRENT changes and MISSION_ITEM_REACHED.
 
@@ -30,6 +33,7 @@ from numpy.typing import NDArray
 from pymavlink import mavutil
 
 from flycrane.errors import FieldProblem, InputError
+from missions.autopilots.location import VehicleFrame, local_scale
 from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
 from missions.options import GeodeticOrigin
 
@@ -97,6 +101,31 @@ def _track(rows: Sequence[Sequence[float]], origin: GeodeticOrigin) -> PositionS
     return PositionSeries(array[:, 0], enu, array[:, 1])
 
 
+def _local_track(
+    rows: Sequence[Sequence[float]],
+    ekf_origin: tuple[int, int, int] | None,
+    home_down: float | None,
+    origin: GeodeticOrigin,
+    home_height: float | None,
+) -> PositionSeries | None:
+    """The estimate from LOCAL_POSITION_NED rows (time, log time, north, east, down), or
+    None without them or the frame that places them."""
+    if not rows or ekf_origin is None or (home_height is not None and home_down is None):
+        return None
+    lat, lon, alt = ekf_origin[0] * DEGREE_UNIT, ekf_origin[1] * DEGREE_UNIT, ekf_origin[2] / 1000
+    east, north, _ = enu_from_geodetic(lat, lon, origin.altitude, origin)
+    if home_height is None:  # heights from the EKF origin's altitude
+        home_down, home_up = 0.0, alt - origin.altitude
+    else:
+        home_up = home_height
+    assert home_down is not None
+    frame = VehicleFrame(
+        float(east), float(north), local_scale(lat, origin.altitude), home_down, home_up
+    )
+    array = _timed(rows, 5)
+    return PositionSeries(array[:, 0], frame.task_position(array[:, 2:]), array[:, 1])
+
+
 def read_vehicle_log(
     path: Path, name: str, origin: GeodeticOrigin, home_height: float | None = None
 ) -> VehicleLog:
@@ -115,6 +144,9 @@ def read_vehicle_log(
     except OSError as error:
         raise InputError([FieldProblem(name, f"cannot read {path}: {error}")]) from None
     estimated: list[tuple[float, float, int, int, float]] = []
+    local: list[tuple[float, float, float, float, float]] = []
+    ekf_origin: tuple[int, int, int] | None = None
+    home_down: float | None = None
     true: list[list[float]] = []
     current: list[list[float]] = []
     reached: list[list[float]] = []
@@ -139,6 +171,12 @@ def read_vehicle_log(
                 if home_height is not None:
                     altitude = origin.altitude + home_height + msg.relative_alt / 1000.0
                 estimated.append((now, stamp, msg.lat, msg.lon, altitude))
+            elif kind == "LOCAL_POSITION_NED":
+                local.append((now, stamp, msg.x, msg.y, msg.z))
+            elif kind == "GPS_GLOBAL_ORIGIN":
+                ekf_origin = (msg.latitude, msg.longitude, msg.altitude)
+            elif kind == "HOME_POSITION":
+                home_down = float(msg.z)
             elif kind == "SIM_STATE":
                 lat = getattr(msg, "lat_int", 0) or round(msg.lat / DEGREE_UNIT)
                 lon = getattr(msg, "lon_int", 0) or round(msg.lon / DEGREE_UNIT)
@@ -158,7 +196,8 @@ def read_vehicle_log(
     return VehicleLog(
         name=name,
         system_id=system_id,
-        estimated=_track(estimated, origin),
+        estimated=_local_track(local, ekf_origin, home_down, origin, home_height)
+        or _track(estimated, origin),
         true=_track(true, origin) if true else None,
         current=_events(current),
         reached=_events(reached),

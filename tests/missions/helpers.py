@@ -1,5 +1,5 @@
 """Helpers shared by the mission tests, written independently of the modules under test:
-a first-order WGS84 conversion and hand-made plans."""
+a first-order WGS84 conversion, ArduPilot's own, and hand-made plans."""
 
 from __future__ import annotations
 
@@ -33,6 +33,17 @@ def approximate_geodetic(enu, origin: GeodeticOrigin):
     lat = origin.latitude + np.degrees(enu[..., 1] / (meridian + origin.altitude))
     lon = origin.longitude + np.degrees(enu[..., 0] / ((normal + origin.altitude) * np.cos(lat0)))
     return lat, lon
+
+
+def ardupilot_distance_ne(origin: tuple[float, float], lat, lon):
+    """(north, east) [m] from ``origin`` (lat, lon [deg]) to points [deg] as ArduPilot's
+    ``Location::get_distance_NE`` computes them (AP_Common/Location.cpp, 4.5): 1e-7 degree
+    units times LOCATION_SCALING_FACTOR, longitude times the cosine of the mean latitude."""
+    factor = 0.011131884502145034
+    lat0, lon0 = origin
+    north = (np.asarray(lat) - lat0) * 1e7 * factor
+    mean = np.radians((np.asarray(lat) + lat0) / 2)
+    return north, (np.asarray(lon) - lon0) * 1e7 * factor * np.cos(mean)
 
 
 def hand_made_plan(displacements, durations, start=(0.0, 0.0, 5.0)):

@@ -20,7 +20,8 @@ ground's targets are, and vertically from the vehicle's home.
 
 File (little endian): "FCT1", uint32 n, float32 dt, int32 home lat, int32 home lon
 [1e-7 deg], float32 home alt AMSL [m] (24 bytes), then n rows of 10 float32: t, north,
-east, down [m] from home, velocity [m/s], acceleration [m/s^2] (NED). Rows are read in
+east, down [m] from home (north and east in this vehicle's metres, as its Location measures
+them from that home), velocity [m/s], acceleration [m/s^2] (NED). Rows are read in
 windows, so memory does not grow with the file. Lua numbers here are 32-bit integers and
 single-precision floats: times stay in milliseconds since boot and seconds of plan time.
 --]]

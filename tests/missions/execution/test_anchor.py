@@ -16,14 +16,18 @@ from flycrane.model.kinematics import drone_positions_from_configuration
 from flycrane.model.statics import evaluate_statics
 from flycrane.planning.problem import PlanningProblem
 from flycrane.world.scene import load_scene
+from missions.autopilots.location import VehicleFrame
 from missions.execution.anchor import FRACTIONS, LIMIT, ROOM_MARGIN_N, Anchor, FormationRoom
 from missions.execution.record import ExecutionRecord
 from missions.execution.team import EKF_NEEDED
-from missions.execution.vehicles import VehicleFrame, VehicleState
+from missions.execution.vehicles import VehicleState
 from missions.trajectory.drone_trajectory import DroneTrajectory
 from tests.missions.execution.test_stream import _executor, _Link
 
-FRAME = VehicleFrame(origin_east=0.0, origin_north=0.0, home_down=0.0, home_up=0.0)
+#: A frame whose metres are the task's, so that the analytic cases read as they are written.
+FRAME = VehicleFrame(
+    origin_east=0.0, origin_north=0.0, scale=(1.0, 1.0), home_down=0.0, home_up=0.0
+)
 STILL = (np.zeros(3), np.zeros(3), np.zeros(3))
 
 

@@ -1,4 +1,5 @@
-"""A vehicle's clock as the ground reckons it from stamped messages (analytic cases)."""
+"""A vehicle's clock as the ground reckons it from stamped messages, and its frame (analytic
+cases; the frame by ArduPilot's own distance formula)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ import numpy as np
 import pytest
 
 from missions.execution.vehicles import VehicleState
+from missions.options import GeodeticOrigin
+from tests.missions.helpers import approximate_geodetic, ardupilot_distance_ne
 
 #: a LOCAL_POSITION_NED's fields at rest at the origin
 STILL = {"x": 0.0, "y": 0.0, "z": 0.0, "vx": 0.0, "vy": 0.0, "vz": 0.0}
@@ -91,3 +94,27 @@ def test_the_lean_accelerates_the_drone_along_its_tilt(roll, pitch, yaw, north, 
           pitch=math.radians(pitch), yaw=math.radians(yaw))  # fmt: skip
     expected = 9.80665 * math.tan(math.radians(10.0)) * np.array([north, east, 0.0])
     assert state.lean_acceleration() == pytest.approx(expected, abs=1e-12)
+
+
+def test_a_target_is_placed_in_the_vehicle_s_own_metres_from_its_ekf_origin():
+    """EKF origin about 3 m east and 4 m north of the task's origin, home 0.5 m below it: a
+    task point 10 m east, 6 m north and 5 m up is given where ArduPilot's own distance from
+    that origin puts the point's latitude and longitude (not the task metres from it, about
+    7 and 2, which ArduPilot reads 13 mm short and 2.4 mm long at 47.4 deg), and read back
+    as the same point."""
+    state = VehicleState(Link(), speedup=1.0, max_extrapolation=0.1)
+    origin = GeodeticOrigin()
+    lat0, lon0 = (round(float(c) * 1e7) for c in approximate_geodetic([3.0, 4.0, 0.0], origin))
+    heard(state, "GPS_GLOBAL_ORIGIN", latitude=lat0, longitude=lon0, altitude=488000)
+    assert state.frame(origin, home_up=2.0) is None  # no home yet
+    heard(state, "HOME_POSITION", z=0.5)
+    frame = state.frame(origin, home_up=2.0)
+    assert frame is not None
+    point = np.array([10.0, 6.0, 5.0])
+    lat, lon = approximate_geodetic(point, origin)
+    north, east = ardupilot_distance_ne((lat0 * 1e-7, lon0 * 1e-7), lat, lon)
+    local = frame.local_position(point)
+    assert local == pytest.approx([north, east, 0.5 - (5.0 - 2.0)], abs=2e-5)
+    flat = point[[1, 0]] - [frame.origin_north, frame.origin_east]  # task metres from it
+    assert abs(local[0] - flat[0]) > 2e-3 and abs(local[1] - flat[1]) > 1e-2
+    assert frame.task_position(local) == pytest.approx(point, abs=1e-9)
