@@ -93,9 +93,10 @@ class Executor(ABC):
     link_loss_stops = True
     #: How far ahead of a vehicle's present its targets are (horizontal, vertical) [s]
     #: unless :attr:`ExecutionOptions.lead` says: ArduCopter 4.5.7's position controller,
-    #: default tuning, lags a horizontal target more than a vertical one (BENCHMARKS.md,
-    #: "Execution in step", "Second run").
-    default_lead: tuple[float, float] = (0.0, 0.0)
+    #: default tuning, lags a horizontal target more than a vertical one, the stream's
+    #: targets and the onboard player's alike once their clocks agree (BENCHMARKS.md,
+    #: "Execution in step", "Second run"; "Targets in the vehicles' own metres").
+    default_lead: tuple[float, float] = (0.05, 0.0)
     #: From the start command to plan time 0 [s of common time] unless
     #: :attr:`ExecutionOptions.start_delay` says: long enough for the drones to reach their
     #: first target from the autopilot's own hold (which ArduCopter flies at whole

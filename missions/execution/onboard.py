@@ -40,10 +40,6 @@ class OnboardExecutor(Executor):
     mode = "onboard"
     expected_mode = COPTER_MODES["AUTO"]
     link_loss_stops = False
-    #: horizontally the stream's lead and 30 ms more, what the player's targets lagged
-    #: behind the stream's (it sets one every 20 ms, from the scripting thread;
-    #: BENCHMARKS.md, "Execution in step", "Second run")
-    default_lead = (0.08, 0.0)
     resend_s = 0.5  #: [s of common time] between repeats of the current segment
 
     def __init__(self, *args, player_seq: int, **kwargs) -> None:  # type: ignore[no-untyped-def]

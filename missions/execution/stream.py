@@ -32,7 +32,6 @@ class StreamExecutor(Executor):
 
     mode = "stream"
     expected_mode = COPTER_MODES["GUIDED"]
-    default_lead = (0.05, 0.0)
     anchors = True
 
     def engage(self, timeout: float) -> None:
