@@ -23,6 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from missions.geodesy import enu_from_geodetic
+from missions.options import GeodeticOrigin
+
 #: ArduPilot's metres per 1e-7 degree of latitude (AP_Common/Location.h).
 LOCATION_SCALING_FACTOR = 0.011131884502145034
 #: The radius [m] of the sphere that factor implies.
@@ -54,6 +57,21 @@ class VehicleFrame:
     scale: tuple[float, float]  #: the vehicle's metres per task metre, (north, east)
     home_down: float  #: HOME_POSITION z: home's down coordinate in the local frame [m]
     home_up: float  #: the home's height in the task frame (``home_height``) [m]
+
+    @classmethod
+    def at(
+        cls,
+        latitude: float,
+        longitude: float,
+        origin: GeodeticOrigin,
+        home_down: float,
+        home_up: float,
+    ) -> VehicleFrame:
+        """The frame of a vehicle whose EKF origin is at ``latitude``, ``longitude`` [deg]
+        (GPS_GLOBAL_ORIGIN), in the task frame about ``origin``."""
+        east, north, _ = enu_from_geodetic(latitude, longitude, origin.altitude, origin)
+        scale = local_scale(latitude, origin.altitude)
+        return cls(float(east), float(north), scale, home_down, home_up)
 
     def local_position(self, enu: NDArray[np.float64]) -> NDArray[np.float64]:
         """Task-frame ENU positions (..., 3) in the vehicle's local NED frame."""

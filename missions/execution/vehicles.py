@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from missions.autopilots.location import VehicleFrame, local_scale
-from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
+from missions.autopilots.location import VehicleFrame
+from missions.geodesy import DEGREE_UNIT
 from missions.mavlink.transport import VehicleLink
 from missions.options import GeodeticOrigin
 
@@ -181,9 +181,7 @@ class VehicleState:
                 return None
             lat, lon = self.origin
             home_down = self.home_down
-        east, north, _ = enu_from_geodetic(lat, lon, origin.altitude, origin)
-        scale = local_scale(lat, origin.altitude)
-        return VehicleFrame(float(east), float(north), scale, home_down, home_up)
+        return VehicleFrame.at(lat, lon, origin, home_down, home_up)
 
     def estimate(self) -> tuple[float, NDArray[np.float64]] | None:
         """(common time, local NED position) of the last position estimate."""

@@ -6,8 +6,8 @@ a real flight. Per drone this reads
 - the autopilot's estimate: LOCAL_POSITION_NED placed by GPS_GLOBAL_ORIGIN and
   HOME_POSITION in the vehicle's own metres (:class:`~missions.autopilots.location.
   VehicleFrame`, as the executors place their targets), timed by its own ``time_boot_ms``;
-  where a log lacks them, GLOBAL_POSITION_INT, whose whole 1e-7 degrees round it by up to
-  0.6 cm;
+  where a log lacks them, GLOBAL_POSITION_INT, whose whole 1e-7 degrees (ArduPilot
+  truncates its offsets from the EKF origin) are up to 1.1 cm off;
 - the truth where a simulator reports it: SIM_STATE (``lat_int``/``lon_int``, altitude AMSL);
 - the mission's progress: MISSION_CURRENT changes and MISSION_ITEM_REACHED.
 
@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from pymavlink import mavutil
 
 from flycrane.errors import FieldProblem, InputError
-from missions.autopilots.location import VehicleFrame, local_scale
+from missions.autopilots.location import VehicleFrame
 from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
 from missions.options import GeodeticOrigin
 
@@ -113,15 +113,12 @@ def _local_track(
     if not rows or ekf_origin is None or (home_height is not None and home_down is None):
         return None
     lat, lon, alt = ekf_origin[0] * DEGREE_UNIT, ekf_origin[1] * DEGREE_UNIT, ekf_origin[2] / 1000
-    east, north, _ = enu_from_geodetic(lat, lon, origin.altitude, origin)
     if home_height is None:  # heights from the EKF origin's altitude
         home_down, home_up = 0.0, alt - origin.altitude
     else:
         home_up = home_height
     assert home_down is not None
-    frame = VehicleFrame(
-        float(east), float(north), local_scale(lat, origin.altitude), home_down, home_up
-    )
+    frame = VehicleFrame.at(lat, lon, origin, home_down, home_up)
     array = _timed(rows, 5)
     return PositionSeries(array[:, 0], frame.task_position(array[:, 2:]), array[:, 1])
 
