@@ -19,15 +19,9 @@ import struct
 import numpy as np
 from numpy.typing import NDArray
 
-from missions.autopilots.location import local_scale
+from missions.autopilots.location import VehicleFrame
 from missions.export.items import DroneMission, MavCmd, MavFrame, MissionItem
-from missions.geodesy import (
-    DEGREE_UNIT,
-    degrees_to_int,
-    enu_from_geodetic,
-    geodetic_from_enu,
-    ned_from_enu,
-)
+from missions.geodesy import DEGREE_UNIT, degrees_to_int, geodetic_from_enu
 from missions.options import GeodeticOrigin
 
 #: NAV_SCRIPT_TIME's command (param1) that selects the player.
@@ -52,16 +46,14 @@ def player_file(
     lat, lon, alt = (float(c) for c in geodetic_from_enu(home, origin))
     lat_int, lon_int = int(degrees_to_int(lat)), int(degrees_to_int(lon))
     header = HEADER.pack(b"FCT1", len(time), step, lat_int, lon_int, alt)
-    rounded = enu_from_geodetic(lat_int * DEGREE_UNIT, lon_int * DEGREE_UNIT, alt, origin)
-    shift = np.array([*(np.asarray(home)[:2] - rounded[:2]), 0.0])
-    north, east = local_scale(lat, alt)
-    scale = np.array([east, north, 1.0])  # ENU axes
+    # the vehicle's frame about the home as the header rounds it, heights from the home
+    frame = VehicleFrame.at(lat_int * DEGREE_UNIT, lon_int * DEGREE_UNIT, origin, 0.0, home[2])
     rows = np.column_stack(
         [
             time,
-            ned_from_enu((position + shift) * scale),
-            ned_from_enu(velocity * scale),
-            ned_from_enu(acceleration * scale),
+            frame.local_position(home + position),
+            frame.local_vector(velocity),
+            frame.local_vector(acceleration),
         ]
     ).astype("<f4")
     return header + rows.tobytes()
