@@ -105,7 +105,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
     for scene in args.scenes:
         load_scene(scene)  # unknown names and bad files fail here, before any work starts
-    base = PlannerOptions(step=args.step) if args.step else PlannerOptions()
+    base = PlannerOptions(step=args.step)
     out = Path(args.out)
     total = len(args.scenes) * len(args.planners) * args.runs
     records = []
@@ -242,8 +242,10 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     bench.add_argument(
         "--budget", type=_positive(float), default=60.0, help="planner seconds per run (60)"
     )
-    bench.add_argument("--step", type=float, help="extension step (default: planner default)")
-    bench.add_argument("--workers", type=int, help="processes (default: all CPUs)")
+    bench.add_argument(
+        "--step", type=_positive(float), help="extension step (default: planner default)"
+    )
+    bench.add_argument("--workers", type=_positive(int), help="processes (default: all CPUs)")
     bench.add_argument(
         "--cluster",
         metavar="ADDRESS",

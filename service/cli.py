@@ -25,6 +25,17 @@ def _loopback(host: str) -> bool:
         return False
 
 
+def _port(text: str) -> int:
+    """An argparse type: a TCP port to listen on."""
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not 1 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"{port} is outside 1-65535")
+    return port
+
+
 def _cmd_serve(args: argparse.Namespace) -> int:
     import uvicorn
 
@@ -74,7 +85,7 @@ def register(commands: argparse._SubParsersAction) -> None:
     """Add ``serve`` to the ``flycrane`` command line (entry point ``flycrane.commands``)."""
     command = commands.add_parser("serve", help="run the HTTP mission service")
     command.add_argument("--host", default="127.0.0.1", help="address to listen on")
-    command.add_argument("--port", type=int, default=8000)
+    command.add_argument("--port", type=_port, default=8000, help="TCP port, 1-65535")
     command.add_argument("--data-dir", help="database and artifacts (FLYCRANE_DATA_DIR)")
     command.add_argument("--workers", type=int, help="planning processes (FLYCRANE_WORKERS)")
     command.add_argument(

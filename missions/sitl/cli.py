@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -105,9 +106,12 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
 def _parameter(text: str) -> tuple[str, float]:
     name, _, value = text.partition("=")
     try:
-        return name, float(value)
+        number = float(value)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
+        number = math.nan
+    if not name or not math.isfinite(number):
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, a finite number, got {text!r}")
+    return name, number
 
 
 def _lead(text: str) -> float:

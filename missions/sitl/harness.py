@@ -66,7 +66,7 @@ from missions.mavlink.tlog import StretchedClock, TlogWriter
 from missions.mavlink.transport import VehicleLink
 from missions.sitl.clocks import align_clocks
 from missions.sitl.errors import SitlError
-from missions.sitl.faults import FaultPlan
+from missions.sitl.faults import FaultPlan, check_within
 from missions.sitl.plan_files import FlightPlanFiles, Mode
 from missions.sitl.process import SitlGroup, SitlHome
 from missions.sitl.settings import SitlSettings
@@ -164,11 +164,14 @@ def fly_on_sitl(
         its console's last lines), readied, or kept at pace.
     FleetError
         If a vehicle refused a parameter, the upload, arming or the start.
+    InputError
+        If a fault would strike at or after the plan's end (before anything starts).
     """
     settings = settings or SitlSettings()
     options = options or SitlFlightOptions()
     task_dir, out_dir = task_dir.resolve(), out_dir.resolve()
     plan = FlightPlanFiles.read(task_dir, options.mode)
+    check_within(options.faults, plan.flown_duration(options.mode))
     out_dir.mkdir(parents=True, exist_ok=True)
     policy = _policy(settings)
     names = [f"drone{k}" for k in (1, 2, 3)]

@@ -65,6 +65,11 @@ class FlightPlanFiles:
             room=room,
         )
 
+    def flown_duration(self, mode: Mode) -> float:
+        """The plan's duration after the release as ``mode`` flies it [s]: the missions',
+        or the trajectory's that the clocked modes play."""
+        return self.duration_s if mode == "missions" else self.trajectory.duration
+
     def for_mode(self, mode: Mode) -> tuple[tuple[DroneMission, ...], int]:
         """The missions to upload for ``mode``, and the item the executor starts."""
         if mode == "onboard":

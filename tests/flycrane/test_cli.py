@@ -45,6 +45,23 @@ def test_bad_input_is_a_message_and_exit_status_2(tmp_path, capsys):
     assert "platform_mass" in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("--runs", "0"), ("--budget", "-1"), ("--step", "-0.1"), ("--step", "0"),
+     ("--workers", "0"), ("--workers", "two")],
+)  # fmt: skip
+def test_a_bad_bench_setting_is_refused_before_any_run(option, value, tmp_path, capsys):
+    """argparse exits 2 naming the option; nothing is planned or written."""
+    out = tmp_path / "bench"
+    with pytest.raises(SystemExit) as stopped:
+        main(["bench", "--scenes", "rescue", "--planners", "rrt", "--out", str(out),
+              option, value])  # fmt: skip
+    assert stopped.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {option}:" in err and "Traceback" not in err
+    assert not out.exists()
+
+
 def test_system_file_written_by_the_cli_loads_back(tmp_path, capsys):
     path = tmp_path / "system.toml"
     assert main(["system", "--write", str(path)]) == 0

@@ -93,3 +93,17 @@ def test_serve_on_the_ipv6_loopback_answers(tmp_path):
         assert client.get("/v1/tasks").status_code == 200
         # other names are still refused
         assert client.get("/healthz", headers={"host": "evil.example"}).status_code == 400
+
+
+@pytest.mark.parametrize(("port", "why"), [("99999", "99999 is outside 1-65535"),
+                                           ("0", "0 is outside 1-65535"),
+                                           ("http", "not a whole number: 'http'")])  # fmt: skip
+def test_a_port_no_socket_can_take_is_refused_with_its_name(port, why, tmp_path):
+    """Before, uvicorn's bind() raised OverflowError with a traceback (exit 1)."""
+    done = subprocess.run(
+        serve_command(tmp_path / "data", "--port", port),
+        capture_output=True, text=True, timeout=60, env=clean_environment(),
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert f"argument --port: {why}" in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "data").exists()

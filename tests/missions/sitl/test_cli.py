@@ -19,6 +19,17 @@ from missions.sitl.faults import FaultPlan
         (["--boot-speedup", "60"], "fly-sitl: boot_speedup: Input should be less than or equal"),
         (["--fault", "motor:1:5:0.8:5"], "argument --fault: fault motor 5: 1-4"),
         (["--fault", "gps:1:5:0:2"], "'gps:1:5:0:2': only a motor fault names a motor"),
+        (["--fault", "gps:2:-3"], "fault time -3.0: seconds of plan time, at least 0"),
+        (["--fault", "gps:2:nan"], "fault time nan: seconds of plan time, at least 0"),
+        (["--fault", "gps:2:8:0.5"], "'gps:2:8:0.5': a gps fault takes no VALUE"),
+        (["--fault", "gpss:2:8"], "fault kind 'gpss': one of gps, link, mode, motor, late"),
+        (["--fault", "link:one:8"], "DRONE and MOTOR are whole numbers, AT and VALUE numbers"),
+        (["--fault", "motor:1:5"], "'motor:1:5': a motor fault needs VALUE"),
+        (["--fault", "motor:1:5:1.5:2"], "motor thrust fraction 1.5: at least 0 and below 1"),
+        (["--fault", "late:2:0:-1"], "late start -1.0: seconds, more than 0"),
+        (["--fault", "late:2:4:1"], "fault time 4.0: a late start strikes at the start, 0"),
+        (["--parameter", "SIM_WIND_SPD=inf"], "expected NAME=VALUE, a finite number"),
+        (["--parameter", "=3"], "expected NAME=VALUE, a finite number, got '=3'"),
     ],
 )
 def test_a_bad_argument_is_refused_with_its_name(args, message, tmp_path):
@@ -51,3 +62,17 @@ def test_the_process_that_only_starts_the_flight_does_not_load_its_stack():
     )
     run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
     assert run.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("mode", ["missions", "stream"])
+def test_a_fault_after_the_plans_end_is_refused_before_any_simulator_starts(mode, rescue, tmp_path):
+    """A fault that would never strike is refused, not flown as a healthy flight."""
+    done = subprocess.run(
+        [sys.executable, "-m", "flycrane.cli", "fly-sitl", str(rescue), "--out",
+         str(tmp_path / "out"), "--shared-network", "--mode", mode, "--fault", "gps:2:1000"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert "fly-sitl: fault: gps:2:1000 strikes at or after the plan's end at" in done.stderr
+    assert "Traceback" not in done.stderr
+    assert not (tmp_path / "out").exists()
