@@ -379,12 +379,8 @@ class Executor(ABC):
             self.options.policy.steer(self.clock, t, 0.0, stop=True)
             return
         tau = self.clock.tau(t)
-        window = np.clip(tau + np.arange(-FOLLOW_WINDOW_S, FOLLOW_WINDOW_S, 0.02), 0.0,
-                         self.trajectory.duration)  # fmt: skip
-        planned = self.trajectory.at(window)[0][:, k] + self.trajectory.homes[k]
         here = self.frames[k].task_position(estimate[1])
-        progress = float(window[np.argmin(np.linalg.norm(planned - here, axis=-1))])
-        gap = progress - tau
+        gap = self.trajectory.nearest_time(k, here, tau, FOLLOW_WINDOW_S) - tau
         target = 0.0 if abs(gap) < 0.02 else float(np.clip(FOLLOW_GAIN * gap, -1.0, 1.0))
         if abs(target - self.clock.target) > 0.02:
             self.clock.steer(t, target, self.options.policy.braking)

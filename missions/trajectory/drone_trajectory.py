@@ -88,6 +88,15 @@ class DroneTrajectory:
         acceleration = (1 - s) * self.acceleration[k] + s * self.acceleration[k + 1]
         return position, velocity, acceleration
 
+    def nearest_time(
+        self, k: int, position: NDArray[np.float64], tau: float, window: float
+    ) -> float:
+        """The plan time within ``window`` [s] of ``tau`` (on a 0.02 s grid) at which drone
+        k is nearest ``position`` (task frame): how far along its plan a drone is."""
+        times = np.clip(tau + np.arange(-window, window, 0.02), 0.0, self.duration)
+        planned = self.at(times)[0][:, k] + self.homes[k]
+        return float(times[np.argmin(np.linalg.norm(planned - position, axis=-1))])
+
     def in_task_frame(self, position: NDArray[np.float64]) -> NDArray[np.float64]:
         """Home-relative positions of the three drones (..., 3, 3) in the task's ENU frame
         (one drone's: add its row of :attr:`homes`)."""

@@ -101,3 +101,19 @@ def test_a_set_down_descends_its_height_from_rest_to_rest_within_the_leg_speed()
     assert trajectory.set_down_start is not None
     assert (trajectory.time > trajectory.set_down_start).any()
     assert np.allclose(trajectory.velocity[-1], 0.0)
+
+
+def test_the_nearest_time_is_where_a_drone_at_constant_speed_passes_the_position():
+    """Drone 1 flies east at 0.5 m/s from its home (2, 0, 0); the plan time it passes a
+    position is its distance over the speed, looked for only within the window."""
+    time = np.arange(0.0, 10.0 + 1e-9, 0.1)
+    position = np.zeros((len(time), 3, 3))
+    position[:, 1, 0] = 0.5 * time
+    velocity = np.zeros_like(position)
+    velocity[:, 1, 0] = 0.5
+    homes = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 4.0, 0.0]])
+    trajectory = DroneTrajectory(time, position, velocity, np.zeros_like(position), homes)
+    here = np.array([2.0 + 1.5, 0.03, 0.0])  # 3 s along, a little off the path
+    assert trajectory.nearest_time(1, here, 4.0, 3.0) == pytest.approx(3.0, abs=0.011)
+    assert trajectory.nearest_time(1, here, 7.0, 2.0) == pytest.approx(5.0, abs=0.011)
+    assert trajectory.nearest_time(1, here + [10.0, 0, 0], 9.0, 3.0) == pytest.approx(10.0)
