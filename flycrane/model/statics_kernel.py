@@ -21,6 +21,7 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from flycrane.kernels import kernel
 from flycrane.model.cable_system import CABLE_DRONE, CableSystem
 from flycrane.model.cost import CostForm
 from flycrane.model.kinematics import as_configurations
@@ -33,7 +34,7 @@ _DRONE_CABLES = np.array(DRONE_CABLES, dtype=np.int64)
 STATICS_WORK = 9 + 9 + 18 + 36 + 42
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline="always")
 def eliminate(a, b) -> float:
     """Gaussian elimination with partial pivoting of a x = b in place: a (6, 6) becomes
     upper triangular, b (6, k) follows; returns det(a) from the pivots (0 at the first zero
@@ -64,7 +65,7 @@ def eliminate(a, b) -> float:
     return det
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@kernel(inline="always")
 def back_substitute(a, b) -> None:
     """x of the triangular system :func:`eliminate` left, written over b (6, k)."""
     n, k = 6, b.shape[1]
@@ -76,7 +77,7 @@ def back_substitute(a, b) -> None:
             b[r, c] = acc / a[r, r]
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
     """Statics of one configuration q (9,): f0 (6,), v (6,), m (3,) into the outputs; returns
     the cost (+inf where infeasible or singular; then the outputs are +inf). ``model`` is

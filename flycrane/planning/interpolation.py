@@ -47,19 +47,30 @@ def wrap(angle: float) -> float:
 
 
 @numba.njit(cache=True, nogil=True)
+def _quaternion(phi: float, theta: float, sigma: float) -> tuple[float, float, float, float]:
+    ct, st = math.cos(0.5 * theta), math.sin(0.5 * theta)
+    return (
+        ct * math.cos(0.5 * sigma),
+        st * math.sin(0.5 * sigma - phi),
+        st * math.cos(0.5 * sigma - phi),
+        ct * math.sin(0.5 * sigma),
+    )
+
+
+@numba.njit(cache=True, nogil=True)
 def quaternion_from_angles(phi: float, theta: float, sigma: float, out) -> None:
     """Unit quaternion (w, x, y, z) of the tilt-and-torsion angles (module docstring)."""
-    ct, st = math.cos(0.5 * theta), math.sin(0.5 * theta)
-    out[0] = ct * math.cos(0.5 * sigma)
-    out[1] = st * math.sin(0.5 * sigma - phi)
-    out[2] = st * math.cos(0.5 * sigma - phi)
-    out[3] = ct * math.sin(0.5 * sigma)
+    out[0], out[1], out[2], out[3] = _quaternion(phi, theta, sigma)
 
 
 @numba.njit(cache=True, nogil=True)
 def angles_from_quaternion(quat, out, offset: int) -> None:
     """Tilt-and-torsion angles of a unit quaternion into out[offset : offset + 3]."""
-    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
+    _angles_into(quat[0], quat[1], quat[2], quat[3], out, offset)
+
+
+@numba.njit(cache=True, nogil=True)
+def _angles_into(w: float, x: float, y: float, z: float, out, offset: int) -> None:
     tilt_part = math.sqrt(x * x + y * y)
     sigma = 2.0 * math.atan2(z, w)
     # Below 1e-12 of sin(theta/2) the tilt axis is rounding noise (module docstring).
@@ -72,10 +83,9 @@ def angles_from_quaternion(quat, out, offset: int) -> None:
 @numba.njit(cache=True, nogil=True)
 def rotation_angle_between(a, b) -> float:
     """Angle [rad] of the rotation between the orientations of configurations a and b."""
-    qa, qb = np.empty(4), np.empty(4)
-    quaternion_from_angles(a[3], a[4], a[5], qa)
-    quaternion_from_angles(b[3], b[4], b[5], qb)
-    dot = abs(qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3])
+    aw, ax, ay, az = _quaternion(a[3], a[4], a[5])
+    bw, bx, by, bz = _quaternion(b[3], b[4], b[5])
+    dot = abs(aw * bw + ax * bx + ay * by + az * bz)
     return 2.0 * math.acos(min(1.0, dot))
 
 
@@ -93,10 +103,9 @@ def interpolate_into(a, b, t: float, out) -> None:
         out[k] = a[k] + t * (b[k] - a[k])
     for k in range(6, 9):
         out[k] = wrap(a[k] + t * wrap(b[k] - a[k]))
-    qa, qb, qt = np.empty(4), np.empty(4), np.empty(4)
-    quaternion_from_angles(a[3], a[4], a[5], qa)
-    quaternion_from_angles(b[3], b[4], b[5], qb)
-    dot = qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3]
+    aw, ax, ay, az = _quaternion(a[3], a[4], a[5])
+    bw, bx, by, bz = _quaternion(b[3], b[4], b[5])
+    dot = aw * bw + ax * bx + ay * by + az * bz
     sign = 1.0
     if dot < 0.0:  # q and -q are one rotation: take the short way round
         sign, dot = -1.0, -dot
@@ -107,14 +116,10 @@ def interpolate_into(a, b, t: float, out) -> None:
         omega = math.acos(dot)
         wa = math.sin((1.0 - t) * omega) / math.sin(omega)
         wb = math.sin(t * omega) / math.sin(omega)
-    norm = 0.0
-    for k in range(4):
-        qt[k] = wa * qa[k] + wb * sign * qb[k]
-        norm += qt[k] * qt[k]
-    norm = math.sqrt(norm)
-    for k in range(4):
-        qt[k] /= norm
-    angles_from_quaternion(qt, out, 3)
+    tw, tx = wa * aw + wb * sign * bw, wa * ax + wb * sign * bx
+    ty, tz = wa * ay + wb * sign * by, wa * az + wb * sign * bz
+    norm = math.sqrt(tw * tw + tx * tx + ty * ty + tz * tz)
+    _angles_into(tw / norm, tx / norm, ty / norm, tz / norm, out, 3)
 
 
 @numba.njit(cache=True, nogil=True)

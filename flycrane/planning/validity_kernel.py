@@ -18,9 +18,9 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import numba
 import numpy as np
 
+from flycrane.kernels import kernel
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.cost import CostForm
 from flycrane.model.statics_kernel import STATICS_WORK, statics_model, statics_row
@@ -29,8 +29,12 @@ from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.world.collision_kernel import CompiledScene, collision_free_row, kinematic_arrays
 from flycrane.world.scene import SceneSpec
 
+#: Index in the workspace of the count of configurations checked (:meth:`CompiledValidity.
+#: checked`).
+CHECKED = 11
 
-@numba.njit(cache=True, nogil=True)
+
+@kernel()
 def in_bounds(q, bounds) -> bool:
     """q inside the sampling bounds: [low xyz, high xyz, max tilt, alpha range, sigma range]."""
     for a in range(3):
@@ -47,12 +51,13 @@ def in_bounds(q, bounds) -> bool:
     return offset <= span + 1e-12 or offset >= 2.0 * math.pi - 1e-12
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def state_check(q, model, work, use_bounds) -> tuple[float, bool]:
     """(cost, valid) of one configuration; the cost is +inf outside the bounds (when used)
     and where infeasible, and valid means finite cost and no collision."""
     bounds, smodel, kin, scene, _ = model
     statics_work, f0, v, m, collision_work = work[0], work[1], work[2], work[3], work[4:11]
+    work[CHECKED][0] += 1
     if use_bounds and not in_bounds(q, bounds):
         return math.inf, False
     cost = statics_row(q, smodel, f0, v, m, statics_work)
@@ -61,13 +66,13 @@ def state_check(q, model, work, use_bounds) -> tuple[float, bool]:
     return cost, collision_free_row(q, kin, scene, collision_work)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _states(q, model, work, use_bounds, cost, valid) -> None:
     for row in range(q.shape[0]):
         cost[row], valid[row] = state_check(q[row], model, work, use_bounds)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def motion_check(a, b, resolution, model, work, use_bounds, check_start) -> bool:
     """Whether every configuration of the discretized local path a -> b is valid (module
     docstring); a, the start, is checked only with ``check_start`` (tree nodes are valid)."""
@@ -91,7 +96,7 @@ def motion_check(a, b, resolution, model, work, use_bounds, check_start) -> bool
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def motion_last_valid(a, b, resolution, model, work, use_bounds) -> float:
     """Fraction t of the local path a -> b up to which every discretized configuration is
     valid (a, a tree node, is taken as valid): 1.0 if all are, else the last valid one's."""
@@ -105,7 +110,7 @@ def motion_last_valid(a, b, resolution, model, work, use_bounds) -> float:
     return 1.0
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _motions(a, b, resolution, model, work, use_bounds, out) -> None:
     for row in range(a.shape[0]):
         out[row] = motion_check(a[row], b[row], resolution, model, work, use_bounds, True)
@@ -156,8 +161,15 @@ class CompiledValidity:
             np.empty(6),
             np.empty(3),
             *self.compiled_scene.workspace(),
+            np.zeros(1, dtype=np.int64),  # CHECKED
             np.empty((3, 18)),  # configurations, embeddings, repair gradients
         )
+
+    @staticmethod
+    def checked(work: tuple) -> int:
+        """Configurations checked with ``work`` since it was made: what a planner's time
+        mostly goes to (``benchmarks/attempt_cost.py``)."""
+        return int(work[CHECKED][0])
 
     def states(self, q: np.ndarray, use_bounds: bool, work: tuple) -> tuple[np.ndarray, np.ndarray]:
         """(cost (N,), valid (N,)) of configurations (N, 9); collisions with payload meshes

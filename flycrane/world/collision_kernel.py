@@ -28,9 +28,9 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import numba
 import numpy as np
 
+from flycrane.kernels import kernel
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.system_spec import DRONE_CABLES
 from flycrane.world.bodies import platform_prism
@@ -188,7 +188,7 @@ class CompiledScene:
         )
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _bodies_free(first, last, scene, work) -> bool:
     """Robot bodies first..last-1 (placed) against the ground and the obstacles; fills
     their bounds.
@@ -227,7 +227,7 @@ def _bodies_free(first, last, scene, work) -> bool:
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _box_overlaps(boxes, b, low, high, o) -> bool:
     """Body b's box (boxes[b]: low, high) against box o of ``low``, ``high`` (O, 3)."""
     for axis in range(3):
@@ -236,7 +236,7 @@ def _box_overlaps(boxes, b, low, high, o) -> bool:
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def pose_free(q, kin, scene, work) -> bool:
     """Place the platform pose of q (R, cable starts b_i, platform, payload) and check the
     platform and the payload, which no alpha moves. The first part of
@@ -282,7 +282,7 @@ def pose_free(q, kin, scene, work) -> bool:
     return _bodies_free(_PLATFORM, spare, scene, work)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def drone_free(q, k, kin, scene, work) -> bool:
     """Place drone k at its alpha q[6 + k] with its two cables (after :func:`pose_free`)
     and check them against the ground, the obstacles and the payload (cables without their
@@ -331,7 +331,7 @@ def drone_free(q, k, kin, scene, work) -> bool:
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def formation_free(scene, work) -> bool:
     """Drone centres at least the separation apart, no drone touching another drone's
     cables (after :func:`drone_free` placed all three)."""
@@ -357,7 +357,7 @@ def formation_free(scene, work) -> bool:
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def collision_free_row(q, kin, scene, work) -> bool:
     """Whether configuration q (9,) collides with nothing (module docstring).
 
@@ -374,7 +374,7 @@ def collision_free_row(q, kin, scene, work) -> bool:
     return formation_free(scene, work)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _boxes_overlap(boxes_a, a, boxes_b, b) -> bool:
     for axis in range(3):
         if boxes_a[a, 0, axis] > boxes_b[b, 1, axis] or boxes_a[a, 1, axis] < boxes_b[b, 0, axis]:
@@ -382,7 +382,7 @@ def _boxes_overlap(boxes_a, a, boxes_b, b) -> bool:
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _collision_free_rows(q, kin, scene, work, out) -> None:
     for row in range(q.shape[0]):
         out[row] = collision_free_row(q[row], kin, scene, work)

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 
-import numba
+from flycrane.kernels import kernel
 
 POINT, SEGMENT, BOX, CYLINDER, POLYTOPE, TRIANGLE = 0, 1, 2, 3, 4, 5
 
@@ -48,7 +48,7 @@ GJK_WORK = 12
 MAX_ITERATIONS = 64
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def support(kind, row, centers, rots, sizes, verts, dx, dy, dz, out) -> None:
     """The point of shape ``row`` of a table furthest along (dx, dy, dz), into out (3,)."""
     if kind == POINT:
@@ -91,7 +91,7 @@ def support(kind, row, centers, rots, sizes, verts, dx, dy, dz, out) -> None:
         out[0], out[1], out[2] = verts[index, 0], verts[index, 1], verts[index, 2]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def bounds(kind, row, centers, rots, sizes, verts, margin, out, out_row) -> None:
     """Axis-aligned bounds of shape ``row`` grown by ``margin``: out[out_row, 0] the low
     corner, out[out_row, 1] the high one (exact for every kind)."""
@@ -125,24 +125,24 @@ def bounds(kind, row, centers, rots, sizes, verts, margin, out, out_row) -> None
         out[out_row, 1, a] = high + margin
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _copy(source, target) -> None:
     """target[:] = source for 3-vectors, element by element (numba compiles an array
     assignment into seconds of broadcasting machinery; this into nothing)."""
     target[0], target[1], target[2] = source[0], source[1], source[2]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _dot(a, b) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _squared_gap(a, b) -> float:
     return (b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _segment_closest(a, b, v) -> float:
     """Closest point v of segment ab to the origin; returns its squared distance."""
     e0, e1, e2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
@@ -154,7 +154,7 @@ def _segment_closest(a, b, v) -> float:
     return v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _triangle(a, b, c, v, scratch) -> int:
     """Closest point v of triangle abc to the origin; returns the kept vertices as bits
     (1: a, 2: b, 4: c). Ericson 5.1.5 with p = 0; a degenerate triangle falls back to its
@@ -212,7 +212,7 @@ def _triangle(a, b, c, v, scratch) -> int:
     return 7
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _closest_on_simplex(simplex, n, v, scratch, chosen) -> int:
     """Closest point v of the simplex (n points) to the origin; the simplex is reduced to
     the smallest face holding it. Returns the new size, 0 if the origin is inside."""
@@ -260,7 +260,7 @@ def _closest_on_simplex(simplex, n, v, scratch, chosen) -> int:
     return _keep(simplex, chosen, bits, i, j, k)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _face_distance(simplex, i, j, k, o, scale, v, scratch) -> float:
     """Squared distance from the origin to face ijk when the origin lies outside the face's
     plane (or the tetrahedron is flat), its closest point into v; +inf otherwise."""
@@ -277,7 +277,7 @@ def _face_distance(simplex, i, j, k, o, scale, v, scratch) -> float:
     return _dot(v, v)
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def _keep(simplex, chosen, bits, i, j, k) -> int:
     """Compact simplex points i, j, k selected by bits (1, 2, 4) to the front (through
     ``chosen``, 3 x 3 scratch, as the indices may cross)."""
@@ -296,7 +296,7 @@ def _keep(simplex, chosen, bits, i, j, k) -> int:
     return n
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def separated(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) -> bool:
     """True iff the cores are certainly more than ``margin`` apart (module docstring).
     ``work``: (GJK_WORK, 3) scratch, so that the test allocates nothing."""
@@ -329,7 +329,7 @@ def separated(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) 
     return False
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def point_distance_squared(point, kind, row, centers, rots, sizes) -> float:
     """Squared distance from a point (3,) to the core of shape ``row`` of a table, for a
     point, a segment, a solid box or a solid cylinder (exact); -1 for other kinds."""
@@ -365,7 +365,7 @@ def point_distance_squared(point, kind, row, centers, rots, sizes) -> float:
     return radial * radial + axial * axial
 
 
-@numba.njit(cache=True, nogil=True, error_model="numpy")
+@kernel(error_model="numpy")
 def shapes_touch(ka, ra, ca, rota, sa, va, kb, rb, cb, rotb, sb, vb, margin, work) -> bool:
     """Whether the cores of shape ``ra`` of table a and shape ``rb`` of table b (each table:
     centres, rotations, sizes, vertices) are within ``margin``: closed forms for a point

@@ -32,6 +32,7 @@ import math
 import numba
 import numpy as np
 
+from flycrane.kernels import kernel
 from flycrane.model.statics_kernel import statics_row
 from flycrane.planning.algorithms.neighbours import EMBEDDING
 from flycrane.planning.interpolation import geodesic_length, interpolate_into
@@ -53,7 +54,7 @@ REPAIR_STEPS = 2
 FAILED, ADVANCED, REACHED, BLOCKED = 0, 1, 2, 3
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def embed_into(q, weights, out) -> None:
     """E(q) of :meth:`ConfigurationSpace.embed` into out (18,)."""
     phi, theta, sigma = q[3], q[4], q[5]
@@ -75,7 +76,7 @@ def embed_into(q, weights, out) -> None:
         out[15 + k] = weights[1] * math.sin(q[6 + k])
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def repair_objective(smodel, f0, v, m, caps) -> float:
     """The repair's objective (module docstring) of a feasible configuration from its
     statics, :func:`statics_row`'s f0 (6,), v (6,), m (3,): log c + caps[3] x log c_cap,
@@ -97,7 +98,7 @@ def repair_objective(smodel, f0, v, m, caps) -> float:
     return log_cost + caps[3] * log_capped
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _objective(q, model, work, caps) -> float:
     """The repair's objective of q, +inf where q is invalid."""
     if not state_check(q, model, work, True)[1]:
@@ -105,7 +106,7 @@ def _objective(q, model, work, caps) -> float:
     return repair_objective(model[1], work[1], work[2], work[3], caps)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _statics_objective(q, model, work, caps) -> float:
     """The repair's objective without the collision check: the probes of a descent only
     need the slope."""
@@ -118,7 +119,7 @@ def _statics_objective(q, model, work, caps) -> float:
     return repair_objective(smodel, work[1], work[2], work[3], caps)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def repair_alphas(q, model, work, gradient, caps) -> float:
     """Descend the repair's objective over q's alphas in place (module docstring); returns
     the objective at the end (+inf if q is invalid and no step found a valid
@@ -285,7 +286,7 @@ def extend(
     return FAILED, math.inf
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def advance_partial(near, out, least, resolution, model, work) -> float:
     """Move ``out`` back along the local path near -> out to its last valid configuration
     (at the motion's discretization); that configuration's cost if it lies at least
@@ -308,7 +309,7 @@ def advance_partial(near, out, least, resolution, model, work) -> float:
     return cost
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def reshape_first(near, new, resolution, model, work, middle) -> float:
     """The two motions near -> middle -> new, where middle is the near pose with new's
     alphas: the formation changes in place, then the pose moves. Returns middle's cost if

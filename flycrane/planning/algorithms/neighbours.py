@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 
-import numba
+from flycrane.kernels import kernel
 
 #: Width of the embedding (position 3, scaled rotation matrix 9, alpha chords 6).
 EMBEDDING = 18
@@ -27,13 +27,13 @@ EMBEDDING = 18
 TABLE_SIZE = 1 << 16
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _bucket(x: int, y: int, z: int) -> int:
     # Teschner et al.'s spatial hash (large primes, XOR), masked to the table.
     return ((x * 73856093) ^ (y * 19349663) ^ (z * 83492791)) & (TABLE_SIZE - 1)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _squared_distance(embeddings, row, point, bound) -> float:
     """|embeddings[row] - point|^2, or a partial sum >= bound as soon as one is reached (the
     row cannot be the nearest then)."""
@@ -46,7 +46,7 @@ def _squared_distance(embeddings, row, point, bound) -> float:
     return total
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def brute_nearest(embeddings, count, point) -> tuple[int, float]:
     """Index of the row of embeddings[:count] nearest to point (18,), and the distance."""
     best, index = math.inf, -1
@@ -57,7 +57,7 @@ def brute_nearest(embeddings, count, point) -> tuple[int, float]:
     return index, math.sqrt(best)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def grid_insert(head, chain, cells, index, point, cell) -> None:
     """File node ``index`` (embedding ``point``) in its cell."""
     x = math.floor(point[0] / cell)
@@ -69,7 +69,7 @@ def grid_insert(head, chain, cells, index, point, cell) -> None:
     head[bucket] = index
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def grid_nearest(head, chain, cells, embeddings, count, point, cell) -> tuple[int, float]:
     """The exact nearest node to ``point`` (18,) among the first ``count`` (module
     docstring): (index, distance)."""
