@@ -4,7 +4,7 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: run test test-slow bench lint clean browser postgres
+.PHONY: run test test-slow bench lint clean clean-kernels browser postgres
 
 $(BIN)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -74,3 +74,8 @@ lint: $(BIN)/.installed
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis build *.egg-info
+
+# numba's cache of compiled kernels (README "Limits": it is kept per source file, so a
+# kernel's callers keep the old code of a kernel edited in another file until it is emptied).
+clean-kernels:
+	find flycrane missions -name '*.nbi' -delete -o -name '*.nbc' -delete
