@@ -398,7 +398,7 @@ def _execute(
         if fault.kind == "late":
             executor.hold_back(fault.drone, fault.value)
     record = executor.start()
-    duration = plan.duration_s if isinstance(executor, MissionsExecutor) else record.duration
+    duration = plan.flown_duration(options.mode)
     pending = sorted((f for f in options.faults if f.kind != "late"), key=lambda f: f.at)
     injected: list[dict] = [asdict(f) | {"time": record.start} for f in options.faults
                             if f.kind == "late"]  # fmt: skip
