@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -30,8 +29,8 @@ from flycrane.model.system_spec import DRONE_CABLES
 
 _CABLE_DRONE = np.array(CABLE_DRONE, dtype=np.int64)
 _DRONE_CABLES = np.array(DRONE_CABLES, dtype=np.int64)
-#: Scratch floats :func:`statics_row` needs: R, drones, unit vectors, J, right-hand sides.
-STATICS_WORK = 9 + 9 + 18 + 36 + 42
+#: exp(-709): eq. 8's product of factors below it makes a cost beyond the largest float.
+_LEAST_PRODUCT = math.exp(-709.0)
 
 
 @kernel(inline="always")
@@ -77,12 +76,13 @@ def back_substitute(a, b) -> None:
             b[r, c] = acc / a[r, r]
 
 
-@kernel()
+@kernel(inline="always")
 def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
     """Statics of one configuration q (9,): f0 (6,), v (6,), m (3,) into the outputs; returns
     the cost (+inf where infeasible or singular; then the outputs are +inf). ``model`` is
-    :func:`statics_model`'s tuple, ``work`` scratch of STATICS_WORK floats, so that a row
-    allocates nothing."""
+    :func:`statics_model`'s tuple, ``work`` :func:`statics_workspace`, so that a row
+    allocates nothing. Eq. 8's cost is the inverse of the product of its factors: one
+    division, where a sum of logarithms took fifteen of them."""
     (
         points,
         foot,
@@ -100,11 +100,7 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
         drone_cables,
     ) = model
     platform_weight, threshold, normalized = scalars[0], scalars[1], scalars[2] > 0.0
-    rot = work[0:9].reshape((3, 3))
-    drones = work[9:18].reshape((3, 3))
-    unit = work[18:36].reshape((6, 3))
-    jac = work[36:72].reshape((6, 6))
-    rhs = work[72:114].reshape((6, 7))
+    rot, drones, unit, jac, rhs = work
     phi, theta, sigma = q[3], q[4], q[5]
     cp, sp = math.cos(phi), math.sin(phi)
     ct, st = math.cos(theta), math.sin(theta)
@@ -160,7 +156,7 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
             m_out[k] = math.inf
         return math.inf
     back_substitute(jac, rhs)
-    log_cost = 0.0
+    product = 1.0
     feasible = True
     for i in range(6):
         f0_out[i] = rhs[i, 0]
@@ -175,7 +171,7 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
         if slack <= 0.0 or overload <= 0.0:
             feasible = False
         else:
-            log_cost -= math.log(slack) + math.log(overload)
+            product *= slack * overload
     # Thrust bound: |T| is convex in the two tensions, so check the four corners.
     for k in range(3):
         i, j = drone_cables[k, 0], drone_cables[k, 1]
@@ -194,16 +190,20 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
         if margin <= 0.0:
             feasible = False
         else:
-            log_cost -= math.log(margin)
-    # exp overflows to +inf for costs beyond ~1e308, which is what +inf means here.
-    return math.exp(log_cost) if feasible and log_cost < 709.0 else math.inf
+            product *= margin
+    return 1.0 / product if feasible and product > _LEAST_PRODUCT else math.inf
 
 
-@numba.njit(cache=True, nogil=True)
-def _statics_rows(q, model, f0_out, v_out, m_out, cost_out) -> None:
-    work = np.empty(STATICS_WORK)
+@kernel()
+def _statics_rows(q, model, f0_out, v_out, m_out, cost_out, work) -> None:
     for row in range(q.shape[0]):
         cost_out[row] = statics_row(q[row], model, f0_out[row], v_out[row], m_out[row], work)
+
+
+def statics_workspace() -> tuple:
+    """Scratch of :func:`statics_row`: R, the drones, the cables' unit vectors, J and the
+    right-hand sides."""
+    return tuple(np.empty(shape) for shape in ((3, 3), (3, 3), (6, 3), (6, 6), (6, 7)))
 
 
 def statics_model(system: CableSystem, form: CostForm = CostForm.NORMALIZED) -> tuple:
@@ -235,7 +235,7 @@ def compiled_statics(
     q = as_configurations(q)
     n = len(q)
     f0, v, m, cost = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 3)), np.empty(n)
-    _statics_rows(q, statics_model(system, form), f0, v, m, cost)
+    _statics_rows(q, statics_model(system, form), f0, v, m, cost, statics_workspace())
     return f0, v, m, cost
 
 

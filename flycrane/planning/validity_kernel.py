@@ -23,7 +23,7 @@ import numpy as np
 from flycrane.kernels import kernel
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.cost import CostForm
-from flycrane.model.statics_kernel import STATICS_WORK, statics_model, statics_row
+from flycrane.model.statics_kernel import statics_model, statics_row, statics_workspace
 from flycrane.planning.interpolation import interpolate_into, segment_count
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.world.collision_kernel import CompiledScene, collision_free_row, kinematic_arrays
@@ -156,7 +156,7 @@ class CompiledValidity:
     def workspace(self) -> tuple:
         """Scratch for one caller (kernels write into it; not shared between threads)."""
         return (
-            np.empty(STATICS_WORK),
+            statics_workspace(),
             np.empty(6),
             np.empty(6),
             np.empty(3),

@@ -188,7 +188,7 @@ class CompiledScene:
         )
 
 
-@kernel()
+@kernel(inline="always")
 def _bodies_free(first, last, scene, work) -> bool:
     """Robot bodies first..last-1 (placed) against the ground and the obstacles; fills
     their bounds.
@@ -227,7 +227,7 @@ def _bodies_free(first, last, scene, work) -> bool:
     return True
 
 
-@kernel()
+@kernel(inline="always")
 def _box_overlaps(boxes, b, low, high, o) -> bool:
     """Body b's box (boxes[b]: low, high) against box o of ``low``, ``high`` (O, 3)."""
     for axis in range(3):
@@ -236,7 +236,7 @@ def _box_overlaps(boxes, b, low, high, o) -> bool:
     return True
 
 
-@kernel()
+@kernel(inline="always")
 def pose_free(q, kin, scene, work) -> bool:
     """Place the platform pose of q (R, cable starts b_i, platform, payload) and check the
     platform and the payload, which no alpha moves. The first part of
@@ -282,7 +282,7 @@ def pose_free(q, kin, scene, work) -> bool:
     return _bodies_free(_PLATFORM, spare, scene, work)
 
 
-@kernel()
+@kernel(inline="always")
 def drone_free(q, k, kin, scene, work) -> bool:
     """Place drone k at its alpha q[6 + k] with its two cables (after :func:`pose_free`)
     and check them against the ground, the obstacles and the payload (cables without their
@@ -331,7 +331,7 @@ def drone_free(q, k, kin, scene, work) -> bool:
     return True
 
 
-@kernel()
+@kernel(inline="always")
 def formation_free(scene, work) -> bool:
     """Drone centres at least the separation apart, no drone touching another drone's
     cables (after :func:`drone_free` placed all three)."""
@@ -357,7 +357,7 @@ def formation_free(scene, work) -> bool:
     return True
 
 
-@kernel()
+@kernel(inline="always")
 def collision_free_row(q, kin, scene, work) -> bool:
     """Whether configuration q (9,) collides with nothing (module docstring).
 
@@ -374,7 +374,7 @@ def collision_free_row(q, kin, scene, work) -> bool:
     return formation_free(scene, work)
 
 
-@kernel()
+@kernel(inline="always")
 def _boxes_overlap(boxes_a, a, boxes_b, b) -> bool:
     for axis in range(3):
         if boxes_a[a, 0, axis] > boxes_b[b, 1, axis] or boxes_a[a, 1, axis] < boxes_b[b, 0, axis]:
