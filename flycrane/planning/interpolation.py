@@ -27,9 +27,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from flycrane.kernels import kernel
 
 
 def wrap_angle(angle: ArrayLike) -> NDArray[np.float64]:
@@ -38,7 +39,7 @@ def wrap_angle(angle: ArrayLike) -> NDArray[np.float64]:
     return np.where(wrapped == -np.pi, np.pi, wrapped)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def wrap(angle: float) -> float:
     """One angle wrapped into (-pi, pi]."""
     turns = math.floor((angle + math.pi) / (2.0 * math.pi))
@@ -46,8 +47,9 @@ def wrap(angle: float) -> float:
     return math.pi if wrapped <= -math.pi else min(wrapped, math.pi)
 
 
-@numba.njit(cache=True, nogil=True)
-def _quaternion(phi: float, theta: float, sigma: float) -> tuple[float, float, float, float]:
+@kernel()
+def quaternion(phi: float, theta: float, sigma: float) -> tuple[float, float, float, float]:
+    """Unit quaternion (w, x, y, z) of the tilt-and-torsion angles (module docstring)."""
     ct, st = math.cos(0.5 * theta), math.sin(0.5 * theta)
     return (
         ct * math.cos(0.5 * sigma),
@@ -57,20 +59,9 @@ def _quaternion(phi: float, theta: float, sigma: float) -> tuple[float, float, f
     )
 
 
-@numba.njit(cache=True, nogil=True)
-def quaternion_from_angles(phi: float, theta: float, sigma: float, out) -> None:
-    """Unit quaternion (w, x, y, z) of the tilt-and-torsion angles (module docstring)."""
-    out[0], out[1], out[2], out[3] = _quaternion(phi, theta, sigma)
-
-
-@numba.njit(cache=True, nogil=True)
-def angles_from_quaternion(quat, out, offset: int) -> None:
+@kernel()
+def angles_into(w: float, x: float, y: float, z: float, out, offset: int) -> None:
     """Tilt-and-torsion angles of a unit quaternion into out[offset : offset + 3]."""
-    _angles_into(quat[0], quat[1], quat[2], quat[3], out, offset)
-
-
-@numba.njit(cache=True, nogil=True)
-def _angles_into(w: float, x: float, y: float, z: float, out, offset: int) -> None:
     tilt_part = math.sqrt(x * x + y * y)
     sigma = 2.0 * math.atan2(z, w)
     # Below 1e-12 of sin(theta/2) the tilt axis is rounding noise (module docstring).
@@ -80,16 +71,16 @@ def _angles_into(w: float, x: float, y: float, z: float, out, offset: int) -> No
     out[offset + 2] = wrap(sigma)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def rotation_angle_between(a, b) -> float:
     """Angle [rad] of the rotation between the orientations of configurations a and b."""
-    aw, ax, ay, az = _quaternion(a[3], a[4], a[5])
-    bw, bx, by, bz = _quaternion(b[3], b[4], b[5])
+    aw, ax, ay, az = quaternion(a[3], a[4], a[5])
+    bw, bx, by, bz = quaternion(b[3], b[4], b[5])
     dot = abs(aw * bw + ax * bx + ay * by + az * bz)
     return 2.0 * math.acos(min(1.0, dot))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def interpolate_into(a, b, t: float, out) -> None:
     """The configuration at fraction t of the local path a -> b, written into out (9,)."""
     if t == 0.0 or t == 1.0:  # the end points exactly, not their round trip
@@ -103,8 +94,8 @@ def interpolate_into(a, b, t: float, out) -> None:
         out[k] = a[k] + t * (b[k] - a[k])
     for k in range(6, 9):
         out[k] = wrap(a[k] + t * wrap(b[k] - a[k]))
-    aw, ax, ay, az = _quaternion(a[3], a[4], a[5])
-    bw, bx, by, bz = _quaternion(b[3], b[4], b[5])
+    aw, ax, ay, az = quaternion(a[3], a[4], a[5])
+    bw, bx, by, bz = quaternion(b[3], b[4], b[5])
     dot = aw * bw + ax * bx + ay * by + az * bz
     sign = 1.0
     if dot < 0.0:  # q and -q are one rotation: take the short way round
@@ -119,16 +110,16 @@ def interpolate_into(a, b, t: float, out) -> None:
     tw, tx = wa * aw + wb * sign * bw, wa * ax + wb * sign * bx
     ty, tz = wa * ay + wb * sign * by, wa * az + wb * sign * bz
     norm = math.sqrt(tw * tw + tx * tx + ty * ty + tz * tz)
-    _angles_into(tw / norm, tx / norm, ty / norm, tz / norm, out, 3)
+    angles_into(tw / norm, tx / norm, ty / norm, tz / norm, out, 3)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _interpolate_rows(a, b, t, out) -> None:
     for row in range(len(t)):
         interpolate_into(a[row], b[row], t[row], out[row])
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def geodesic_length(a, b, rotation_weight: float, alpha_weight: float) -> float:
     """Length of the local path a -> b: sqrt(|dp|^2 + (rho_R w)^2 + sum (rho_a d_alpha)^2).
 
@@ -145,19 +136,19 @@ def geodesic_length(a, b, rotation_weight: float, alpha_weight: float) -> float:
     return math.sqrt(total)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def geodesic_lengths(a, b, rotation_weight: float, alpha_weight: float, out) -> None:
     for row in range(len(out)):
         out[row] = geodesic_length(a[row], b[row], rotation_weight, alpha_weight)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def segment_count(a, b, resolution: float, rotation_weight: float, alpha_weight: float) -> int:
     """Pieces of the local path a -> b so that none is longer than ``resolution`` (>= 1)."""
     return max(1, math.ceil(geodesic_length(a, b, rotation_weight, alpha_weight) / resolution))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def discretize_into(a, b, pieces: int, out) -> None:
     """pieces + 1 configurations evenly spaced along a -> b, ends included, into out."""
     for k in range(pieces + 1):

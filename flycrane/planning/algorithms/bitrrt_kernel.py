@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from flycrane.kernels import kernel
 from flycrane.planning.algorithms.extension_kernel import (
     ADVANCED,
     BLOCKED,
@@ -41,7 +42,7 @@ from flycrane.planning.algorithms.extension_kernel import (
     reshape_first,
 )
 from flycrane.planning.algorithms.neighbours import EMBEDDING, TABLE_SIZE, grid_insert, grid_nearest
-from flycrane.planning.interpolation import angles_from_quaternion, quaternion_from_angles, wrap
+from flycrane.planning.interpolation import angles_into, quaternion, wrap
 
 #: run()'s outcomes: the batch of attempts is done; the trees met (``meet`` holds the two
 #: node indices); the arrays are nearly full (enlarge them and call again).
@@ -172,7 +173,7 @@ class Forest:
         )
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def add_node(forest, t, q, parent, cost, weights) -> int:
     """Append a node to tree t; its index."""
     qs, emb, parents, costs, head, chain, cells, size, scalars, cell = forest
@@ -192,13 +193,13 @@ def add_node(forest, t, q, parent, cost, weights) -> int:
     return index
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _nearest(forest, t, point) -> tuple[int, float]:
     _, emb, _, _, head, chain, cells, size, _, cell = forest
     return grid_nearest(head[t], chain[t], cells[t], emb[t], size[t], point, cell)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def sample_uniform(rng, bounds, out) -> None:
     """A configuration uniform in the bounds (ConfigurationSpace.sample_uniform's law)."""
     for a in range(3):
@@ -210,7 +211,7 @@ def sample_uniform(rng, bounds, out) -> None:
         out[k] = rng.uniform(bounds[7], bounds[8])
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def sample_near(rng, q, radius, bounds, weights, out) -> None:
     """A configuration about ``radius`` (metric units) from q: Gaussian position offsets, a
     Gaussian rotation vector (world axes) and Gaussian alpha offsets, each scaled by its
@@ -222,28 +223,30 @@ def sample_near(rng, q, radius, bounds, weights, out) -> None:
     ry = rng.normal(0.0, sigma / weights[0])
     rz = rng.normal(0.0, sigma / weights[0])
     angle = math.sqrt(rx * rx + ry * ry + rz * rz)
-    qa = np.empty(4)
-    quaternion_from_angles(q[3], q[4], q[5], qa)
+    aw, ax, ay, az = quaternion(q[3], q[4], q[5])
     half = 0.5 * angle
     s = math.sin(half) / angle if angle > 1e-12 else 0.5
     w, x, y, z = math.cos(half), s * rx, s * ry, s * rz
-    product = np.empty(4)  # (w, x, y, z) * qa: the offset rotation applied in world axes
-    product[0] = w * qa[0] - x * qa[1] - y * qa[2] - z * qa[3]
-    product[1] = w * qa[1] + x * qa[0] + y * qa[3] - z * qa[2]
-    product[2] = w * qa[2] - x * qa[3] + y * qa[0] + z * qa[1]
-    product[3] = w * qa[3] + x * qa[2] - y * qa[1] + z * qa[0]
-    angles_from_quaternion(product, out, 3)
+    # (w, x, y, z) * (aw, ax, ay, az): the offset rotation applied in world axes
+    angles_into(
+        w * aw - x * ax - y * ay - z * az,
+        w * ax + x * aw + y * az - z * ay,
+        w * ay - x * az + y * aw + z * ax,
+        w * az + x * ay - y * ax + z * aw,
+        out,
+        3,
+    )
     out[4] = min(out[4], bounds[6])
     for k in range(6, 9):
         out[k] = min(bounds[8], max(bounds[7], q[k] + rng.normal(0.0, sigma / weights[1])))
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _energy(cost, log_cost) -> float:
     return math.log(cost) if log_cost else cost
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def accepts(scalars, t, c_from, c_to, params, counters) -> bool:
     """transitionTest (OMPL BiTRRT) in tree t's direction of growth, on log c or c."""
     if c_to > params[P_COST_THRESHOLD]:
@@ -265,7 +268,7 @@ def accepts(scalars, t, c_from, c_to, params, counters) -> bool:
     return False
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _frontier_allows(distance, params, counters) -> bool:
     """minExpansionControl (OMPL BiTRRT)."""
     if distance > params[P_FRONTIER_THRESHOLD]:
@@ -278,7 +281,7 @@ def _frontier_allows(distance, params, counters) -> bool:
     return True
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def grow(forest, t, near, target, repair, params, model, work, counters, out) -> tuple[int, int]:
     """One extension of tree t from node ``near`` towards ``target``: (outcome, new index
     or -1)."""
@@ -289,7 +292,7 @@ def grow(forest, t, near, target, repair, params, model, work, counters, out) ->
         out, params[P_CAP_SLACK : P_MARGIN_WEIGHT + 1],
     )  # fmt: skip
     if outcome == BLOCKED and params[P_RESHAPE_FIRST] > 0.0:
-        middle = np.empty(9)
+        middle = work[-1][2, 9:]  # free again after extend
         middle_cost = reshape_first(qs[t, near], out, resolution, model, work, middle)
         if middle_cost < math.inf and accepts(
             scalars, t, costs[t, near], middle_cost, params, counters
@@ -317,10 +320,10 @@ def grow(forest, t, near, target, repair, params, model, work, counters, out) ->
     return outcome, add_node(forest, t, out, near, cost, weights)
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def connect(forest, t, target, params, model, work, counters, out) -> int:
     """Grow tree t towards ``target`` until it reaches it (the node's index) or not (-1)."""
-    point = np.empty(EMBEDDING)
+    point = work[-1][1, :EMBEDDING]  # grow's until the loop
     embed_into(target, model[4], point)
     near, distance = _nearest(forest, t, point)
     if distance > params[P_CONNECTION_RANGE]:

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from flycrane.kernels import kernel
@@ -84,18 +83,18 @@ def repair_objective(smodel, f0, v, m, caps) -> float:
     caps[1] and caps[2]. The planner's checker evaluates eq. 8's normalized form, whose
     factors these are."""
     thrust_max, f_lo, f_hi = smodel[7], smodel[8], smodel[9]
-    log_cost, log_capped = 0.0, 0.0
+    product, capped = 1.0, 1.0
     for i in range(6):
         span = f_hi[i] - f_lo[i]
         slack = (f0[i] - v[i] - f_lo[i]) / span
         overload = (f_hi[i] - f0[i] - v[i]) / span
-        log_cost -= math.log(slack) + math.log(overload)
-        log_capped -= math.log(min(slack, caps[0])) + math.log(min(overload, caps[1]))
+        product *= slack * overload
+        capped *= min(slack, caps[0]) * min(overload, caps[1])
     for k in range(3):
         thrust = (thrust_max[k] - m[k]) / thrust_max[k]
-        log_cost -= math.log(thrust)
-        log_capped -= math.log(min(thrust, caps[2]))
-    return log_cost + caps[3] * log_capped
+        product *= thrust
+        capped *= min(thrust, caps[2])
+    return -math.log(product) - caps[3] * math.log(capped)
 
 
 @kernel()
@@ -164,27 +163,30 @@ def repair_alphas(q, model, work, gradient, caps) -> float:
     return value
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def _choose_alphas(near, target, out, model, work, scratch, caps) -> bool:
     """Start the repair from the valid one of least objective of: the near node's alphas
     (the warm start), the interpolated ones (out's), the target's; if none is valid,
     :func:`choose_formation` near the near node's. False if nothing is valid. The
     candidates are ranked by their statics and checked for collisions in that order, so
-    usually one collision check decides."""
-    candidates = scratch[6:15].reshape((3, 3))  # rows: near's, out's, target's alphas
-    costs = np.empty(3)
-    for k in range(3):
-        candidates[0, k], candidates[1, k] = near[6 + k], out[6 + k]
-        candidates[2, k] = target[6 + k]
+    usually one collision check decides. ``scratch`` (18,): the candidates' alphas and
+    objectives."""
+    for k in range(3):  # candidates c at scratch[6 + 3c:], their objectives at scratch[15 + c]
+        scratch[6 + k], scratch[9 + k], scratch[12 + k] = near[6 + k], out[6 + k], target[6 + k]
     for c in range(3):
         for k in range(3):
-            out[6 + k] = candidates[c, k]
-        costs[c] = _statics_objective(out, model, work, caps)
-    for c in np.argsort(costs):
-        if not costs[c] < math.inf:
+            out[6 + k] = scratch[6 + 3 * c + k]
+        scratch[15 + c] = _statics_objective(out, model, work, caps)
+    for _ in range(3):
+        c = 0  # the least objective not yet tried, the first of equals
+        for other in (1, 2):
+            if scratch[15 + other] < scratch[15 + c]:
+                c = other
+        if not scratch[15 + c] < math.inf:
             break
+        scratch[15 + c] = math.inf  # tried
         for k in range(3):
-            out[6 + k] = candidates[c, k]
+            out[6 + k] = scratch[6 + 3 * c + k]
         if state_check(out, model, work, True)[1]:
             return True
     return choose_formation(out, near[6:9], model, work, scratch, caps)
@@ -195,46 +197,48 @@ FORMATION_GRID = 16
 FORMATION_NEAREST = 3
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def choose_formation(q, preferred, model, work, scratch, caps) -> bool:
     """Alphas for q's pose when none of the usual candidates is valid (module docstring):
     per drone, the FORMATION_NEAREST alphas of a FORMATION_GRID scan nearest to
     ``preferred`` (3,) at which that drone and its cables touch nothing; of their
-    combinations, the valid one of least objective goes into q. False if none is valid."""
+    combinations, the valid one of least objective goes into q. False if none is valid.
+    ``scratch`` (18,): per drone its nearest free alphas, nearest first (from 3 x
+    FORMATION_NEAREST k), their count (at 12 + k), the best combination (at 15)."""
     bounds, _, kin, scene, _ = model
     collision_work = work[4:11]
     low, high = bounds[7], bounds[8]
     if not pose_free(q, kin, scene, collision_work):
         return False
-    chosen = scratch[12:18]  # per drone: count of free alphas found, then the alphas
-    options = np.empty((3, FORMATION_NEAREST))
-    counts = np.zeros(3, dtype=np.int64)
     for k in range(3):
-        free = np.empty(FORMATION_GRID)
-        distance = np.empty(FORMATION_GRID)
-        n = 0
+        row, count = FORMATION_NEAREST * k, 0
         for g in range(FORMATION_GRID):
-            q[6 + k] = low + (high - low) * g / (FORMATION_GRID - 1)
-            if drone_free(q, k, kin, scene, collision_work):
-                free[n] = q[6 + k]
-                distance[n] = abs(q[6 + k] - preferred[k])
-                n += 1
-        if n == 0:
+            alpha = low + (high - low) * g / (FORMATION_GRID - 1)
+            q[6 + k] = alpha
+            if not drone_free(q, k, kin, scene, collision_work):
+                continue
+            distance = abs(alpha - preferred[k])
+            m = count  # insert, after the free alphas as near, if among the nearest
+            while m > 0 and abs(scratch[row + m - 1] - preferred[k]) > distance:
+                if m < FORMATION_NEAREST:
+                    scratch[row + m] = scratch[row + m - 1]
+                m -= 1
+            if m < FORMATION_NEAREST:
+                scratch[row + m] = alpha
+            count = min(count + 1, FORMATION_NEAREST)
+        if count == 0:
             return False
-        order = np.argsort(distance[:n])
-        counts[k] = min(n, FORMATION_NEAREST)
-        for m in range(counts[k]):
-            options[k, m] = free[order[m]]
-    best = math.inf
-    for i in range(counts[0]):
-        for j in range(counts[1]):
-            for m in range(counts[2]):
-                q[6], q[7], q[8] = options[0, i], options[1, j], options[2, m]
+        scratch[12 + k] = count
+    best, second, third = math.inf, FORMATION_NEAREST, 2 * FORMATION_NEAREST
+    for i in range(int(scratch[12])):
+        for j in range(int(scratch[13])):
+            for m in range(int(scratch[14])):
+                q[6], q[7], q[8] = scratch[i], scratch[second + j], scratch[third + m]
                 value = _objective(q, model, work, caps)
                 if value < best:
                     best = value
-                    chosen[0], chosen[1], chosen[2] = q[6], q[7], q[8]
-    q[6], q[7], q[8] = chosen[0], chosen[1], chosen[2]
+                    scratch[15], scratch[16], scratch[17] = q[6], q[7], q[8]
+    q[6], q[7], q[8] = scratch[15], scratch[16], scratch[17]
     return best < math.inf
 
 
@@ -243,7 +247,7 @@ def choose_formation(q, preferred, model, work, scratch, caps) -> bool:
 NO_REPAIR, REPAIR, REPAIR_UNLESS_REACHED = 0, 1, 2
 
 
-@numba.njit(cache=True, nogil=True)
+@kernel()
 def extend(
     near, target, step, repair, partial, resolution, model, work, out, caps
 ) -> tuple[int, float]:
