@@ -321,11 +321,9 @@ def grow(forest, t, near, target, repair, params, model, work, counters, out) ->
 
 
 @kernel()
-def connect(forest, t, target, params, model, work, counters, out) -> int:
-    """Grow tree t towards ``target`` until it reaches it (the node's index) or not (-1)."""
-    point = work[-1][1, :EMBEDDING]  # grow's until the loop
-    embed_into(target, model[4], point)
-    near, distance = _nearest(forest, t, point)
+def connect(forest, t, target, near, distance, params, model, work, counters, out) -> int:
+    """Grow tree t towards ``target``, from its nearest node ``near`` at ``distance``, until
+    it reaches it (the node's index) or not (-1)."""
     if distance > params[P_CONNECTION_RANGE]:
         return -1
     for _ in range(CONNECT_STEPS):
@@ -374,10 +372,10 @@ def run(forest, rng, params, model, work, counters, gap, meet, iterations) -> in
         repair = REPAIR if rng.random() < params[P_REPAIR_SHARE] else NO_REPAIR
         outcome, index = grow(forest, t, near, target, repair, params, model, work, counters, out)
         if outcome != FAILED:
-            _, distance = _nearest(forest, o, emb[t, index])
+            near, distance = _nearest(forest, o, emb[t, index])
             gap[0] = min(gap[0], distance)
             new = qs[t, index].copy()
-            met = connect(forest, o, new, params, model, work, counters, out)
+            met = connect(forest, o, new, near, distance, params, model, work, counters, out)
             if met >= 0:
                 meet[t], meet[o] = index, met
                 return MET
