@@ -27,9 +27,9 @@ import statistics
 import time
 from dataclasses import replace
 
-import numba
 import numpy as np
 
+from flycrane.kernels import kernel
 from flycrane.model.statics_kernel import statics_row
 from flycrane.planning.algorithms.bitrrt import BiTRRT
 from flycrane.planning.planners import PlannerOptions
@@ -40,7 +40,7 @@ from missions.task.resolve import resolve_task
 from missions.task.spec import TaskSpec
 
 
-@numba.njit(cache=True)
+@kernel()
 def _state_checks(q, model, work) -> int:
     valid = 0
     for i in range(q.shape[0]):
@@ -48,7 +48,7 @@ def _state_checks(q, model, work) -> int:
     return valid
 
 
-@numba.njit(cache=True)
+@kernel()
 def _statics(q, model, work) -> int:
     feasible = 0
     for i in range(q.shape[0]):
@@ -56,7 +56,7 @@ def _statics(q, model, work) -> int:
     return feasible
 
 
-@numba.njit(cache=True)
+@kernel()
 def _collisions(q, model, work) -> int:
     free = 0
     for i in range(q.shape[0]):
