@@ -22,10 +22,16 @@ from flycrane.model.statics_kernel import compiled_statics, statics_model
 from flycrane.planning.algorithms import bitrrt, bitrrt_kernel
 from flycrane.planning.algorithms.bitrrt import BiTRRT, BiTRRTConfig, PayloadMeshes, margin_caps
 from flycrane.planning.algorithms.bitrrt_kernel import MARGIN
-from flycrane.planning.algorithms.extension_kernel import repair_objective
+from flycrane.planning.algorithms.extension_kernel import (
+    FORMATION_GRID,
+    FORMATION_NEAREST,
+    choose_formation,
+    repair_objective,
+)
 from flycrane.planning.planners import PlannerOptions, make_planner, plan
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.result import PlannerStatus, TerminationCondition
+from flycrane.world.collision_kernel import drone_free, pose_free
 from flycrane.world.scene import scene_from_dict
 
 #: Generous: the runs below take well under a second to tens of seconds (BENCHMARKS.md);
@@ -244,3 +250,44 @@ def test_the_objective_keeps_the_margins_eq8_trades_away():
     assert new_slack >= hover_slack - 0.2
     assert new_thrust >= thrust + 1.0
     assert new_headroom >= headroom + 0.5
+
+
+def test_the_formation_scan_keeps_each_drones_nearest_free_alphas_and_their_best_mix():
+    """choose_formation against a brute force in Python at poses of a corridor path (where
+    the walls refuse some alphas): per drone, the FORMATION_NEAREST grid alphas nearest to
+    the preferred ones (the first on the grid among equals) at which the kernel finds that
+    drone free; of their combinations, the valid one (the fcl and numpy checker) of least
+    objective (numpy statics) is the one chosen."""
+    problem = PlanningProblem.named("corridor")
+    validity, space = problem.validity, problem.space
+    model, work = validity.compiled.model, validity.work
+    kin, arrays, collision_work = model[2], model[3], work[4:11]
+    caps = np.append(margin_caps(problem.system, np.stack([problem.start, problem.goal])), 1.0)
+    grid = np.linspace(space.alpha_low, space.alpha_high, FORMATION_GRID)
+    rng = np.random.default_rng(3)
+    path = solve(problem, seed=0).path
+    blocked = 0
+    for pose in path[np.linspace(0, len(path) - 1, 12).astype(int)]:
+        preferred = rng.uniform(space.alpha_low, space.alpha_high, 3)
+        q = pose.copy()
+        if not pose_free(q, kin, arrays, collision_work):
+            continue
+        nearest = []
+        for k in range(3):
+            free = []
+            for alpha in grid:
+                q[6 + k] = alpha
+                if drone_free(q, k, kin, arrays, collision_work):
+                    free.append(alpha)
+            blocked += FORMATION_GRID - len(free)
+            nearest.append(sorted(free, key=lambda a: abs(a - preferred[k]))[:FORMATION_NEAREST])
+        mixes = np.array(list(itertools.product(*nearest))).reshape(-1, 3)
+        candidates = np.column_stack([np.repeat(pose[None, :6], len(mixes), axis=0), mixes])
+        valid = validity.is_valid(candidates) if len(mixes) else np.zeros(0, dtype=bool)
+        chosen = pose.copy()
+        found = choose_formation(chosen, preferred, model, work, np.empty(18), caps)
+        assert found == bool(valid.any())
+        if found:
+            objective = reference_objective(problem, candidates[valid], caps, caps[3])
+            np.testing.assert_allclose(chosen, candidates[valid][np.argmin(objective)])
+    assert blocked > 0  # some alphas were refused, so the selection was exercised
