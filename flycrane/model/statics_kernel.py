@@ -29,8 +29,6 @@ from flycrane.model.system_spec import DRONE_CABLES
 
 _CABLE_DRONE = np.array(CABLE_DRONE, dtype=np.int64)
 _DRONE_CABLES = np.array(DRONE_CABLES, dtype=np.int64)
-#: exp(-709): eq. 8's product of factors below it makes a cost beyond the largest float.
-_LEAST_PRODUCT = math.exp(-709.0)
 
 
 @kernel(inline="always")
@@ -81,8 +79,7 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
     """Statics of one configuration q (9,): f0 (6,), v (6,), m (3,) into the outputs; returns
     the cost (+inf where infeasible or singular; then the outputs are +inf). ``model`` is
     :func:`statics_model`'s tuple, ``work`` :func:`statics_workspace`, so that a row
-    allocates nothing. Eq. 8's cost is the inverse of the product of its factors: one
-    division, where a sum of logarithms took fifteen of them."""
+    allocates nothing."""
     (
         points,
         foot,
@@ -156,7 +153,7 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
             m_out[k] = math.inf
         return math.inf
     back_substitute(jac, rhs)
-    product = 1.0
+    log_cost = 0.0
     feasible = True
     for i in range(6):
         f0_out[i] = rhs[i, 0]
@@ -171,7 +168,7 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
         if slack <= 0.0 or overload <= 0.0:
             feasible = False
         else:
-            product *= slack * overload
+            log_cost -= math.log(slack) + math.log(overload)
     # Thrust bound: |T| is convex in the two tensions, so check the four corners.
     for k in range(3):
         i, j = drone_cables[k, 0], drone_cables[k, 1]
@@ -190,8 +187,9 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
         if margin <= 0.0:
             feasible = False
         else:
-            product *= margin
-    return 1.0 / product if feasible and product > _LEAST_PRODUCT else math.inf
+            log_cost -= math.log(margin)
+    # exp overflows to +inf for costs beyond ~1e308, which is what +inf means here.
+    return math.exp(log_cost) if feasible and log_cost < 709.0 else math.inf
 
 
 @kernel()

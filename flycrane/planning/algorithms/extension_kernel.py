@@ -83,18 +83,18 @@ def repair_objective(smodel, f0, v, m, caps) -> float:
     caps[1] and caps[2]. The planner's checker evaluates eq. 8's normalized form, whose
     factors these are."""
     thrust_max, f_lo, f_hi = smodel[7], smodel[8], smodel[9]
-    product, capped = 1.0, 1.0
+    log_cost, log_capped = 0.0, 0.0
     for i in range(6):
         span = f_hi[i] - f_lo[i]
         slack = (f0[i] - v[i] - f_lo[i]) / span
         overload = (f_hi[i] - f0[i] - v[i]) / span
-        product *= slack * overload
-        capped *= min(slack, caps[0]) * min(overload, caps[1])
+        log_cost -= math.log(slack) + math.log(overload)
+        log_capped -= math.log(min(slack, caps[0])) + math.log(min(overload, caps[1]))
     for k in range(3):
         thrust = (thrust_max[k] - m[k]) / thrust_max[k]
-        product *= thrust
-        capped *= min(thrust, caps[2])
-    return -math.log(product) - caps[3] * math.log(capped)
+        log_cost -= math.log(thrust)
+        log_capped -= math.log(min(thrust, caps[2]))
+    return log_cost + caps[3] * log_capped
 
 
 @kernel()
@@ -119,17 +119,14 @@ def _statics_objective(q, model, work, caps) -> float:
 
 
 @kernel()
-def repair_alphas(q, model, work, gradient, caps) -> float:
-    """Descend the repair's objective over q's alphas in place (module docstring); returns
-    the objective at the end (+inf if q is invalid and no step found a valid
-    configuration). ``caps``: :func:`repair_objective`'s. The slope is probed
-    on the statics alone (a collision check costs 2-3 times the statics); every step taken
-    is checked whole, so a step into an obstacle is refused and shortened."""
+def repair_alphas(q, model, work, gradient, caps, value) -> float:
+    """Descend the repair's objective over q's alphas in place (module docstring), from
+    ``value``, the objective at q (valid); returns the objective at the end. ``caps``:
+    :func:`repair_objective`'s. The slope is probed on the statics alone (a collision check
+    costs about as much as the statics again); every step taken is checked whole, so a
+    step into an obstacle is refused and shortened."""
     bounds = model[0]
     low, high = bounds[7], bounds[8]
-    value = _objective(q, model, work, caps)
-    if not value < math.inf:
-        return value
     for _ in range(REPAIR_STEPS):
         norm = 0.0
         for k in range(3):
@@ -164,10 +161,11 @@ def repair_alphas(q, model, work, gradient, caps) -> float:
 
 
 @kernel()
-def _choose_alphas(near, target, out, model, work, scratch, caps) -> bool:
+def _choose_alphas(near, target, out, model, work, scratch, caps) -> float:
     """Start the repair from the valid one of least objective of: the near node's alphas
     (the warm start), the interpolated ones (out's), the target's; if none is valid,
-    :func:`choose_formation` near the near node's. False if nothing is valid. The
+    :func:`choose_formation` near the near node's. Returns the objective of out's alphas,
+    +inf if nothing is valid. The
     candidates are ranked by their statics and checked for collisions in that order, so
     usually one collision check decides. ``scratch`` (18,): the candidates' alphas and
     objectives."""
@@ -188,7 +186,7 @@ def _choose_alphas(near, target, out, model, work, scratch, caps) -> bool:
         for k in range(3):
             out[6 + k] = scratch[6 + 3 * c + k]
         if state_check(out, model, work, True)[1]:
-            return True
+            return repair_objective(model[1], work[1], work[2], work[3], caps)
     return choose_formation(out, near[6:9], model, work, scratch, caps)
 
 
@@ -198,18 +196,19 @@ FORMATION_NEAREST = 3
 
 
 @kernel()
-def choose_formation(q, preferred, model, work, scratch, caps) -> bool:
+def choose_formation(q, preferred, model, work, scratch, caps) -> float:
     """Alphas for q's pose when none of the usual candidates is valid (module docstring):
     per drone, the FORMATION_NEAREST alphas of a FORMATION_GRID scan nearest to
     ``preferred`` (3,) at which that drone and its cables touch nothing; of their
-    combinations, the valid one of least objective goes into q. False if none is valid.
+    combinations, the valid one of least objective goes into q; returns its objective, +inf
+    if none is valid.
     ``scratch`` (18,): per drone its nearest free alphas, nearest first (from 3 x
     FORMATION_NEAREST k), their count (at 12 + k), the best combination (at 15)."""
     bounds, _, kin, scene, _ = model
     collision_work = work[4:11]
     low, high = bounds[7], bounds[8]
     if not pose_free(q, kin, scene, collision_work):
-        return False
+        return math.inf
     for k in range(3):
         row, count = FORMATION_NEAREST * k, 0
         for g in range(FORMATION_GRID):
@@ -227,7 +226,7 @@ def choose_formation(q, preferred, model, work, scratch, caps) -> bool:
                 scratch[row + m] = alpha
             count = min(count + 1, FORMATION_NEAREST)
         if count == 0:
-            return False
+            return math.inf
         scratch[12 + k] = count
     best, second, third = math.inf, FORMATION_NEAREST, 2 * FORMATION_NEAREST
     for i in range(int(scratch[12])):
@@ -239,7 +238,7 @@ def choose_formation(q, preferred, model, work, scratch, caps) -> bool:
                     best = value
                     scratch[15], scratch[16], scratch[17] = q[6], q[7], q[8]
     q[6], q[7], q[8] = scratch[15], scratch[16], scratch[17]
-    return best < math.inf
+    return best
 
 
 #: extend's repair modes: never; always (towards samples, whose alphas mean nothing);
@@ -274,10 +273,10 @@ def extend(
     interpolate_into(near, target, 1.0 if reached else step / distance, out)
     if repair == REPAIR or (repair == REPAIR_UNLESS_REACHED and not reached):
         reached = False
-        if not _choose_alphas(near, target, out, model, work, scratch[2], caps):
+        value = _choose_alphas(near, target, out, model, work, scratch[2], caps)
+        if not value < math.inf:
             return FAILED, math.inf
-        if not repair_alphas(out, model, work, scratch[2], caps) < math.inf:
-            return FAILED, math.inf
+        repair_alphas(out, model, work, scratch[2], caps, value)
     cost, valid = state_check(out, model, work, True)
     if valid:
         if motion_check(near, out, resolution, model, work, True, False):

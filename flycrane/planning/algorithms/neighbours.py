@@ -35,14 +35,18 @@ def _bucket(x: int, y: int, z: int) -> int:
 
 @kernel()
 def _squared_distance(embeddings, row, point, bound) -> float:
-    """|embeddings[row] - point|^2, or a partial sum >= bound as soon as one is reached (the
-    row cannot be the nearest then)."""
+    """|embeddings[row] - point|^2, or the position's part alone where that reaches
+    ``bound`` (the row cannot be the nearest then; most rows a grid query meets are far in
+    position), the rest summed without a test per term."""
     total = 0.0
-    for a in range(EMBEDDING):
+    for a in range(3):
         d = embeddings[row, a] - point[a]
         total += d * d
-        if total >= bound:
-            break
+    if total >= bound:
+        return total
+    for a in range(3, EMBEDDING):
+        d = embeddings[row, a] - point[a]
+        total += d * d
     return total
 
 

@@ -257,7 +257,7 @@ def test_the_formation_scan_keeps_each_drones_nearest_free_alphas_and_their_best
     the walls refuse some alphas): per drone, the FORMATION_NEAREST grid alphas nearest to
     the preferred ones (the first on the grid among equals) at which the kernel finds that
     drone free; of their combinations, the valid one (the fcl and numpy checker) of least
-    objective (numpy statics) is the one chosen."""
+    objective (numpy statics) is the one chosen, and its objective the one returned."""
     problem = PlanningProblem.named("corridor")
     validity, space = problem.validity, problem.space
     model, work = validity.compiled.model, validity.work
@@ -285,9 +285,10 @@ def test_the_formation_scan_keeps_each_drones_nearest_free_alphas_and_their_best
         candidates = np.column_stack([np.repeat(pose[None, :6], len(mixes), axis=0), mixes])
         valid = validity.is_valid(candidates) if len(mixes) else np.zeros(0, dtype=bool)
         chosen = pose.copy()
-        found = choose_formation(chosen, preferred, model, work, np.empty(18), caps)
-        assert found == bool(valid.any())
-        if found:
+        value = choose_formation(chosen, preferred, model, work, np.empty(18), caps)
+        assert (value < np.inf) == bool(valid.any())
+        if value < np.inf:
             objective = reference_objective(problem, candidates[valid], caps, caps[3])
             np.testing.assert_allclose(chosen, candidates[valid][np.argmin(objective)])
+            np.testing.assert_allclose(value, objective.min(), rtol=1e-9)
     assert blocked > 0  # some alphas were refused, so the selection was exercised
