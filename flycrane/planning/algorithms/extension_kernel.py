@@ -202,8 +202,8 @@ def choose_formation(q, preferred, model, work, scratch, caps) -> float:
     ``preferred`` (3,) at which that drone and its cables touch nothing; of their
     combinations, the valid one of least objective goes into q; returns its objective, +inf
     if none is valid.
-    ``scratch`` (18,): per drone its nearest free alphas, nearest first (from 3 x
-    FORMATION_NEAREST k), their count (at 12 + k), the best combination (at 15)."""
+    ``scratch`` (18,): drone k's nearest free alphas, nearest first, from
+    FORMATION_NEAREST * k, their count at 12 + k, the best combination at 15."""
     bounds, _, kin, scene, _ = model
     collision_work = work[4:11]
     low, high = bounds[7], bounds[8]
