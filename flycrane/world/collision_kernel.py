@@ -304,14 +304,14 @@ def drone_free(q, k, kin, scene, work) -> bool:
     if not _bodies_free(drone, drone + 3, scene, work):
         return False
     for p in range(_FIXED_BODIES, spare):
-        if _boxes_overlap(boxes, drone, boxes, p) and shapes_touch(
+        if _box_overlaps(boxes, drone, boxes[:, 0], boxes[:, 1], p) and shapes_touch(
             kinds[drone], drone, centers, rots, sizes, verts,
             kinds[p], p, centers, rots, sizes, verts,
             params[0] + margins[p], gjk,
         ):  # fmt: skip
             return False
         for cable in range(drone + 1, drone + 3):
-            if not _boxes_overlap(boxes, cable, boxes, p):
+            if not _box_overlaps(boxes, cable, boxes[:, 0], boxes[:, 1], p):
                 continue
             length = 0.0
             for a in range(3):
@@ -372,14 +372,6 @@ def collision_free_row(q, kin, scene, work) -> bool:
         if not drone_free(q, k, kin, scene, work):
             return False
     return formation_free(scene, work)
-
-
-@kernel(inline="always")
-def _boxes_overlap(boxes_a, a, boxes_b, b) -> bool:
-    for axis in range(3):
-        if boxes_a[a, 0, axis] > boxes_b[b, 1, axis] or boxes_a[a, 1, axis] < boxes_b[b, 0, axis]:
-            return False
-    return True
 
 
 @kernel()

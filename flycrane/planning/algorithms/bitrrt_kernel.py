@@ -343,7 +343,7 @@ def run(forest, rng, params, model, work, counters, gap, meet, iterations) -> in
     """Up to ``iterations`` expansion attempts (module docstring); RUNNING, MET or FULL."""
     qs, emb, _, _, _, _, _, size, _, _ = forest
     bounds, weights = model[0], model[4]
-    target, out, point = np.empty(9), np.empty(9), np.empty(EMBEDDING)
+    target, out, new, point = np.empty(9), np.empty(9), np.empty(9), np.empty(EMBEDDING)
     capacity = qs.shape[1]
     for _ in range(iterations):
         if size[0] + MARGIN > capacity or size[1] + MARGIN > capacity:
@@ -374,7 +374,7 @@ def run(forest, rng, params, model, work, counters, gap, meet, iterations) -> in
         if outcome != FAILED:
             near, distance = _nearest(forest, o, emb[t, index])
             gap[0] = min(gap[0], distance)
-            new = qs[t, index].copy()
+            new[:] = qs[t, index]
             met = connect(forest, o, new, near, distance, params, model, work, counters, out)
             if met >= 0:
                 meet[t], meet[o] = index, met
