@@ -66,6 +66,14 @@ def state_check(q, model, work, use_bounds) -> tuple[float, bool]:
     return cost, collision_free_row(q, kin, scene, collision_work)
 
 
+@kernel(inline="always")
+def collisions_free(q, model, work) -> bool:
+    """The rest of :func:`state_check` for a configuration already known to lie in bounds
+    and to be feasible (a caller that ranks configurations by their statics first)."""
+    work[CHECKED][0] += 1
+    return collision_free_row(q, model[2], model[3], work[4:11])
+
+
 @kernel()
 def _states(q, model, work, use_bounds, cost, valid) -> None:
     for row in range(q.shape[0]):
@@ -73,16 +81,17 @@ def _states(q, model, work, use_bounds, cost, valid) -> None:
 
 
 @kernel()
-def motion_check(a, b, resolution, model, work, use_bounds, check_start) -> bool:
+def motion_check(a, b, resolution, model, work, use_bounds, check_start, check_end) -> bool:
     """Whether every configuration of the discretized local path a -> b is valid (module
-    docstring); a, the start, is checked only with ``check_start`` (tree nodes are valid)."""
+    docstring); a, the start, is checked only with ``check_start`` (tree nodes are valid),
+    b only with ``check_end`` (a caller that has just checked b)."""
     weights = model[4]
     pieces = segment_count(a, b, resolution, weights[0], weights[1])
     q = work[-1][0]
     if check_start and not state_check(a, model, work, use_bounds)[1]:
         return False
     interpolate_into(a, b, 1.0, q)
-    if not state_check(q, model, work, use_bounds)[1]:
+    if check_end and not state_check(q, model, work, use_bounds)[1]:
         return False
     stride = 1
     while stride * 2 < pieces:
@@ -113,7 +122,7 @@ def motion_last_valid(a, b, resolution, model, work, use_bounds) -> float:
 @kernel()
 def _motions(a, b, resolution, model, work, use_bounds, out) -> None:
     for row in range(a.shape[0]):
-        out[row] = motion_check(a[row], b[row], resolution, model, work, use_bounds, True)
+        out[row] = motion_check(a[row], b[row], resolution, model, work, use_bounds, True, True)
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,7 +190,7 @@ class CompiledValidity:
     def motion(
         self, a: np.ndarray, b: np.ndarray, resolution: float, work: tuple, use_bounds: bool = True
     ) -> bool:
-        return bool(motion_check(a, b, resolution, self.model, work, use_bounds, False))
+        return bool(motion_check(a, b, resolution, self.model, work, use_bounds, False, True))
 
     def motions(
         self, a: np.ndarray, b: np.ndarray, resolution: float, work: tuple, use_bounds: bool = True

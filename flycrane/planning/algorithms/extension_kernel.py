@@ -36,6 +36,7 @@ from flycrane.model.statics_kernel import statics_row
 from flycrane.planning.algorithms.neighbours import EMBEDDING
 from flycrane.planning.interpolation import geodesic_length, interpolate_into
 from flycrane.planning.validity_kernel import (
+    collisions_free,
     in_bounds,
     motion_check,
     motion_last_valid,
@@ -98,30 +99,35 @@ def repair_objective(smodel, f0, v, m, caps) -> float:
 
 
 @kernel()
-def _objective(q, model, work, caps) -> float:
-    """The repair's objective of q, +inf where q is invalid."""
-    if not state_check(q, model, work, True)[1]:
-        return math.inf
-    return repair_objective(model[1], work[1], work[2], work[3], caps)
-
-
-@kernel()
-def _statics_objective(q, model, work, caps) -> float:
-    """The repair's objective without the collision check: the probes of a descent only
-    need the slope."""
+def _statics_objective(q, model, work, caps) -> tuple[float, float]:
+    """(the repair's objective, the cost) of q without the collision check, (+inf, +inf)
+    out of bounds or infeasible: the probes of a descent only need the slope."""
     bounds, smodel = model[0], model[1]
     if not in_bounds(q, bounds):
-        return math.inf
+        return math.inf, math.inf
     cost = statics_row(q, smodel, work[1], work[2], work[3], work[0])
     if not cost < math.inf:
-        return math.inf
-    return repair_objective(smodel, work[1], work[2], work[3], caps)
+        return math.inf, math.inf
+    return repair_objective(smodel, work[1], work[2], work[3], caps), cost
 
 
 @kernel()
-def repair_alphas(q, model, work, gradient, caps, value) -> float:
+def _objective_below(q, model, work, caps, bound) -> tuple[float, float]:
+    """(the repair's objective, the cost) of q if q is valid and its objective below
+    ``bound``, else (+inf, +inf). The statics decide first: a configuration that does not
+    improve on ``bound`` needs no collision check. Its cost comes along, so the
+    configuration a repair ends at is never checked again."""
+    value, cost = _statics_objective(q, model, work, caps)
+    if not (value < bound and collisions_free(q, model, work)):
+        return math.inf, math.inf
+    return value, cost
+
+
+@kernel()
+def repair_alphas(q, model, work, gradient, caps, value, cost) -> float:
     """Descend the repair's objective over q's alphas in place (module docstring), from
-    ``value``, the objective at q (valid); returns the objective at the end. ``caps``:
+    ``value`` and ``cost``, the objective and the cost at q (valid); returns the cost at
+    the end. ``caps``:
     :func:`repair_objective`'s. The slope is probed on the statics alone (a collision check
     costs about as much as the statics again); every step taken is checked whole, so a
     step into an obstacle is refused and shortened."""
@@ -133,7 +139,7 @@ def repair_alphas(q, model, work, gradient, caps, value) -> float:
             saved = q[6 + k]
             probe = ALPHA_PROBE if saved + ALPHA_PROBE <= high else -ALPHA_PROBE
             q[6 + k] = saved + probe
-            shifted = _statics_objective(q, model, work, caps)
+            shifted = _statics_objective(q, model, work, caps)[0]
             q[6 + k] = saved
             # A probe into infeasibility: push away from it.
             slope = (shifted - value) / probe if shifted < math.inf else 1e3 * np.sign(probe)
@@ -148,33 +154,34 @@ def repair_alphas(q, model, work, gradient, caps, value) -> float:
             for k in range(3):
                 gradient[3 + k] = q[6 + k]
                 q[6 + k] = min(high, max(low, q[6 + k] - step * gradient[k] / norm))
-            trial = _objective(q, model, work, caps)
+            trial, trial_cost = _objective_below(q, model, work, caps, value)
             if trial < value:
-                value, improved = trial, True
+                value, cost, improved = trial, trial_cost, True
                 break
             for k in range(3):
                 q[6 + k] = gradient[3 + k]
             step *= 0.5
         if not improved:
             break
-    return value
+    return cost
 
 
 @kernel()
-def _choose_alphas(near, target, out, model, work, scratch, caps) -> float:
+def _choose_alphas(near, target, out, model, work, scratch, caps) -> tuple[float, float]:
     """Start the repair from the valid one of least objective of: the near node's alphas
     (the warm start), the interpolated ones (out's), the target's; if none is valid,
-    :func:`choose_formation` near the near node's. Returns the objective of out's alphas,
-    +inf if nothing is valid. The
+    :func:`choose_formation` near the near node's. Returns the objective and the cost of
+    out, +inf if nothing is valid. The
     candidates are ranked by their statics and checked for collisions in that order, so
     usually one collision check decides. ``scratch`` (18,): the candidates' alphas and
     objectives."""
-    for k in range(3):  # candidates c at scratch[6 + 3c:], their objectives at scratch[15 + c]
+    # candidates c at scratch[6 + 3c:], their objectives at scratch[15 + c], costs at scratch[c]
+    for k in range(3):
         scratch[6 + k], scratch[9 + k], scratch[12 + k] = near[6 + k], out[6 + k], target[6 + k]
     for c in range(3):
         for k in range(3):
             out[6 + k] = scratch[6 + 3 * c + k]
-        scratch[15 + c] = _statics_objective(out, model, work, caps)
+        scratch[15 + c], scratch[c] = _statics_objective(out, model, work, caps)
     for _ in range(3):
         c = 0  # the least objective not yet tried, the first of equals
         for other in (1, 2):
@@ -182,11 +189,11 @@ def _choose_alphas(near, target, out, model, work, scratch, caps) -> float:
                 c = other
         if not scratch[15 + c] < math.inf:
             break
-        scratch[15 + c] = math.inf  # tried
+        value, scratch[15 + c] = scratch[15 + c], math.inf  # tried
         for k in range(3):
             out[6 + k] = scratch[6 + 3 * c + k]
-        if state_check(out, model, work, True)[1]:
-            return repair_objective(model[1], work[1], work[2], work[3], caps)
+        if collisions_free(out, model, work):  # in bounds and feasible: ranked so
+            return value, scratch[c]
     return choose_formation(out, near[6:9], model, work, scratch, caps)
 
 
@@ -196,19 +203,19 @@ FORMATION_NEAREST = 3
 
 
 @kernel()
-def choose_formation(q, preferred, model, work, scratch, caps) -> float:
+def choose_formation(q, preferred, model, work, scratch, caps) -> tuple[float, float]:
     """Alphas for q's pose when none of the usual candidates is valid (module docstring):
     per drone, the FORMATION_NEAREST alphas of a FORMATION_GRID scan nearest to
     ``preferred`` (3,) at which that drone and its cables touch nothing; of their
-    combinations, the valid one of least objective goes into q; returns its objective, +inf
-    if none is valid.
+    combinations, the valid one of least objective goes into q; returns its objective and
+    its cost, +inf if none is valid.
     ``scratch`` (18,): drone k's nearest free alphas, nearest first, from
     FORMATION_NEAREST * k, their count at 12 + k, the best combination at 15."""
     bounds, _, kin, scene, _ = model
     collision_work = work[4:11]
     low, high = bounds[7], bounds[8]
     if not pose_free(q, kin, scene, collision_work):
-        return math.inf
+        return math.inf, math.inf
     for k in range(3):
         row, count = FORMATION_NEAREST * k, 0
         for g in range(FORMATION_GRID):
@@ -226,19 +233,19 @@ def choose_formation(q, preferred, model, work, scratch, caps) -> float:
                 scratch[row + m] = alpha
             count = min(count + 1, FORMATION_NEAREST)
         if count == 0:
-            return math.inf
+            return math.inf, math.inf
         scratch[12 + k] = count
-    best, second, third = math.inf, FORMATION_NEAREST, 2 * FORMATION_NEAREST
+    best, best_cost, second, third = math.inf, math.inf, FORMATION_NEAREST, 2 * FORMATION_NEAREST
     for i in range(int(scratch[12])):
         for j in range(int(scratch[13])):
             for m in range(int(scratch[14])):
                 q[6], q[7], q[8] = scratch[i], scratch[second + j], scratch[third + m]
-                value = _objective(q, model, work, caps)
+                value, cost = _objective_below(q, model, work, caps, best)
                 if value < best:
-                    best = value
+                    best, best_cost = value, cost
                     scratch[15], scratch[16], scratch[17] = q[6], q[7], q[8]
     q[6], q[7], q[8] = scratch[15], scratch[16], scratch[17]
-    return best
+    return best, best_cost
 
 
 #: extend's repair modes: never; always (towards samples, whose alphas mean nothing);
@@ -273,13 +280,15 @@ def extend(
     interpolate_into(near, target, 1.0 if reached else step / distance, out)
     if repair == REPAIR or (repair == REPAIR_UNLESS_REACHED and not reached):
         reached = False
-        value = _choose_alphas(near, target, out, model, work, scratch[2], caps)
+        value, cost = _choose_alphas(near, target, out, model, work, scratch[2], caps)
         if not value < math.inf:
             return FAILED, math.inf
-        repair_alphas(out, model, work, scratch[2], caps, value)
-    cost, valid = state_check(out, model, work, True)
+        # the repair ends at a configuration it has checked: valid, of known cost
+        cost, valid = repair_alphas(out, model, work, scratch[2], caps, value, cost), True
+    else:
+        cost, valid = state_check(out, model, work, True)
     if valid:
-        if motion_check(near, out, resolution, model, work, True, False):
+        if motion_check(near, out, resolution, model, work, True, False, False):
             return (REACHED if reached else ADVANCED), cost
         return BLOCKED, cost
     if partial > 0.0:
@@ -307,7 +316,7 @@ def advance_partial(near, out, least, resolution, model, work) -> float:
     interpolate_into(near, end, t, out)
     cost, valid = state_check(out, model, work, True)
     # The shorter motion is discretized at other points: check it as every motion is.
-    if not (valid and motion_check(near, out, resolution, model, work, True, False)):
+    if not (valid and motion_check(near, out, resolution, model, work, True, False, False)):
         return math.inf
     return cost
 
@@ -324,8 +333,8 @@ def reshape_first(near, new, resolution, model, work, middle) -> float:
     cost, valid = state_check(middle, model, work, True)
     if not (
         valid
-        and motion_check(near, middle, resolution, model, work, True, False)
-        and motion_check(middle, new, resolution, model, work, True, False)
+        and motion_check(near, middle, resolution, model, work, True, False, False)
+        and motion_check(middle, new, resolution, model, work, True, False, False)
     ):
         return math.inf
     return cost

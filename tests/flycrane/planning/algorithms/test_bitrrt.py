@@ -285,10 +285,11 @@ def test_the_formation_scan_keeps_each_drones_nearest_free_alphas_and_their_best
         candidates = np.column_stack([np.repeat(pose[None, :6], len(mixes), axis=0), mixes])
         valid = validity.is_valid(candidates) if len(mixes) else np.zeros(0, dtype=bool)
         chosen = pose.copy()
-        value = choose_formation(chosen, preferred, model, work, np.empty(18), caps)
+        value, cost = choose_formation(chosen, preferred, model, work, np.empty(18), caps)
         assert (value < np.inf) == bool(valid.any())
         if value < np.inf:
             objective = reference_objective(problem, candidates[valid], caps, caps[3])
             np.testing.assert_allclose(chosen, candidates[valid][np.argmin(objective)])
             np.testing.assert_allclose(value, objective.min(), rtol=1e-9)
+            np.testing.assert_allclose(cost, validity.cost(chosen[None])[0], rtol=1e-9)
     assert blocked > 0  # some alphas were refused, so the selection was exercised
