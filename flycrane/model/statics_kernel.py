@@ -24,6 +24,7 @@ from flycrane.kernels import kernel
 from flycrane.model.cable_system import CABLE_DRONE, CableSystem
 from flycrane.model.cost import CostForm
 from flycrane.model.kinematics import as_configurations
+from flycrane.model.pose_kernel import drone_offsets_into, rotation_into
 from flycrane.model.statics import SINGULARITY_THRESHOLD
 from flycrane.model.system_spec import DRONE_CABLES
 
@@ -80,12 +81,23 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
     the cost (+inf where infeasible or singular; then the outputs are +inf). ``model`` is
     :func:`statics_model`'s tuple, ``work`` :func:`statics_workspace`, so that a row
     allocates nothing."""
+    rotation_into(q, work[0])
+    drone_offsets_into(q, model[1], model[2], model[3], model[4], work[5])
+    return statics_posed(model, f0_out, v_out, m_out, work)
+
+
+@kernel(inline="always")
+def statics_posed(model, f0_out, v_out, m_out, work) -> float:
+    """:func:`statics_row` of the configuration whose pose is in ``work`` already: its
+    rotation R in work[0] and its drones' positions in the platform frame in work[5]
+    (:mod:`flycrane.model.pose_kernel`), which a state check shares with its collision
+    check."""
     (
         points,
-        foot,
-        radius,
-        outward,
-        up,
+        _,  # drone_foot, drone_radius, drone_outward, drone_up: in work[5] already
+        _,
+        _,
+        _,
         com,
         drone_weight,
         thrust_max,
@@ -97,28 +109,13 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
         drone_cables,
     ) = model
     platform_weight, threshold, normalized = scalars[0], scalars[1], scalars[2] > 0.0
-    rot, drones, unit, jac, rhs = work
-    phi, theta, sigma = q[3], q[4], q[5]
-    cp, sp = math.cos(phi), math.sin(phi)
-    ct, st = math.cos(theta), math.sin(theta)
-    cs, ss = math.cos(sigma - phi), math.sin(sigma - phi)
-    rot[0, 0] = cp * ct * cs - sp * ss
-    rot[0, 1] = -cp * ct * ss - sp * cs
-    rot[0, 2] = cp * st
-    rot[1, 0] = sp * ct * cs + cp * ss
-    rot[1, 1] = -sp * ct * ss + cp * cs
-    rot[1, 2] = sp * st
-    rot[2, 0] = -st * cs
-    rot[2, 1] = st * ss
-    rot[2, 2] = ct
-    # Drones relative to P in world axes: R (F_k + h_k (cos a n_k + sin a z_k)).
+    rot, drones, unit, jac, rhs, offsets = work
+    # Drones relative to P in world axes: R a'_k, a'_k = F_k + h_k (cos a n_k + sin a z_k).
     for k in range(3):
-        ca, sa = math.cos(q[6 + k]), math.sin(q[6 + k])
         for a in range(3):
             acc = 0.0
             for b in range(3):
-                local = foot[k, b] + radius[k] * (ca * outward[k, b] + sa * up[k, b])
-                acc += rot[a, b] * local
+                acc += rot[a, b] * offsets[k, b]
             drones[k, a] = acc
     # Jacobian columns [u_i ; (b_i - p) x u_i] and their norms for the singularity test.
     column_norms = 1.0
@@ -199,9 +196,9 @@ def _statics_rows(q, model, f0_out, v_out, m_out, cost_out, work) -> None:
 
 
 def statics_workspace() -> tuple:
-    """Scratch of :func:`statics_row`: R, the drones, the cables' unit vectors, J and the
-    right-hand sides."""
-    return tuple(np.empty(shape) for shape in ((3, 3), (3, 3), (6, 3), (6, 6), (6, 7)))
+    """Scratch of :func:`statics_row`: R, the drones, the cables' unit vectors, J, the
+    right-hand sides and the drones in the platform frame."""
+    return tuple(np.empty(shape) for shape in ((3, 3), (3, 3), (6, 3), (6, 6), (6, 7), (3, 3)))
 
 
 def statics_model(system: CableSystem, form: CostForm = CostForm.NORMALIZED) -> tuple:

@@ -32,6 +32,7 @@ import numpy as np
 
 from flycrane.kernels import kernel
 from flycrane.model.cable_system import CableSystem
+from flycrane.model.pose_kernel import drone_offset, rotation_into
 from flycrane.model.system_spec import DRONE_CABLES
 from flycrane.world.bodies import platform_prism
 from flycrane.world.bvh import build_hierarchy, stack
@@ -241,18 +242,19 @@ def pose_free(q, kin, scene, work) -> bool:
     """Place the platform pose of q (R, cable starts b_i, platform, payload) and check the
     platform and the payload, which no alpha moves. The first part of
     :func:`collision_free_row`; :func:`drone_free` and :func:`formation_free` follow it."""
+    rotation_into(q, work[2][scene[15].shape[0]])  # R (paper eq. 1) lives in the spare row
+    return pose_placed_free(q, kin, scene, work)
+
+
+@kernel(inline="always")
+def pose_placed_free(q, kin, scene, work) -> bool:
+    """:func:`pose_free` with q's rotation R in the rotations' spare row already."""
     points = kin[0]
     pay_center, pay_rot, pay_size, plat_local = scene[8], scene[9], scene[10], scene[12]
     cable_points = scene[14]
     centers, sizes, rots, verts = work[0], work[1], work[2], work[3]
     spare = scene[15].shape[0]
-    rot = rots[spare]  # R (paper eq. 1) lives in the spare row
-    phi, theta, sigma = q[3], q[4], q[5]
-    cp, sp, ct, st = math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta)
-    cs, ss = math.cos(sigma - phi), math.sin(sigma - phi)
-    rot[0, 0], rot[0, 1], rot[0, 2] = cp * ct * cs - sp * ss, -cp * ct * ss - sp * cs, cp * st
-    rot[1, 0], rot[1, 1], rot[1, 2] = sp * ct * cs + cp * ss, -sp * ct * ss + cp * cs, sp * st
-    rot[2, 0], rot[2, 1], rot[2, 2] = -st * cs, st * ss, ct
+    rot = rots[spare]
     for k in range(3):
         for m in range(2):
             i = cable_points[k, m]
@@ -289,16 +291,22 @@ def drone_free(q, k, kin, scene, work) -> bool:
     first ``cable_clearance_at_platform`` metres): everything drone k's alpha moves but
     the other drones."""
     _, foot, radius, outward, up = kin
+    return drone_placed_free(q, k, drone_offset(q, k, foot, radius, outward, up), scene, work)
+
+
+@kernel(inline="always")
+def drone_placed_free(q, k, offset, scene, work) -> bool:
+    """:func:`drone_free` with drone k's position in the platform frame given, ``offset``
+    (3,) (:func:`~flycrane.model.pose_kernel.drone_offset`)."""
     params, kinds, margins = scene[13], scene[15], scene[16]
     centers, sizes, rots, verts, boxes, gjk = work[:6]
     spare = kinds.shape[0]
     rot = rots[spare]
     drone = 3 * k
-    ca, sa = math.cos(q[6 + k]), math.sin(q[6 + k])
     for a in range(3):
         acc = q[a]
         for c in range(3):
-            acc += rot[a, c] * (foot[k, c] + radius[k] * (ca * outward[k, c] + sa * up[k, c]))
+            acc += rot[a, c] * offset[c]
         centers[drone, a] = acc
         sizes[drone + 1, a] = sizes[drone + 2, a] = acc
     if not _bodies_free(drone, drone + 3, scene, work):
@@ -370,6 +378,23 @@ def collision_free_row(q, kin, scene, work) -> bool:
     # numba, which would compile drone_free three times.
     for k in range(3):
         if not drone_free(q, k, kin, scene, work):
+            return False
+    return formation_free(scene, work)
+
+
+@kernel(inline="always")
+def collision_free_posed(q, rot, offsets, kin, scene, work) -> bool:
+    """:func:`collision_free_row` of q whose pose a state check computed already
+    (:mod:`flycrane.model.pose_kernel`): its rotation R (3, 3) and its drones' positions in
+    the platform frame ``offsets`` (3, 3)."""
+    spare = work[2][scene[15].shape[0]]
+    for a in range(3):
+        for c in range(3):
+            spare[a, c] = rot[a, c]
+    if not pose_placed_free(q, kin, scene, work):
+        return False
+    for k in range(3):
+        if not drone_placed_free(q, k, offsets[k], scene, work):
             return False
     return formation_free(scene, work)
 

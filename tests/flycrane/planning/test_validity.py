@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from flycrane.model.statics_kernel import configuration_cost
 from flycrane.planning.problem import PlanningProblem
+from flycrane.world.collision_kernel import collision_free
 
 
 def reference_valid(problem: PlanningProblem, q: np.ndarray) -> np.ndarray:
@@ -35,6 +37,22 @@ def test_states_and_motions_match_the_references():
     assert [problem.validity.motion_is_valid(a, b) for a, b in zip(start, end, strict=True)] == (
         expected
     )
+
+
+def test_state_check_computes_the_pose_once_to_the_same_bits():
+    """The state check computes R and the drones in the platform frame once for its statics
+    and its collisions (flycrane.model.pose_kernel): the same bits as each part alone."""
+    problem = PlanningProblem.named("puzzle")
+    validity = problem.validity
+    rng = np.random.default_rng(5)
+    near = problem.start + rng.normal(0.0, 0.05, (1000, 9))
+    near[:, 4] = np.abs(near[:, 4])
+    q = np.concatenate([problem.space.sample_uniform(rng, 1000), near])
+    cost, valid = validity.compiled.states(q, False, validity.work)
+    np.testing.assert_array_equal(cost, configuration_cost(validity.system, q))
+    free = collision_free(validity.system, validity.compiled.compiled_scene, q)
+    np.testing.assert_array_equal(valid, np.isfinite(cost) & free)
+    assert 0.2 < np.mean(valid) < 0.8
 
 
 def test_is_safe_ignores_only_the_bounds():
