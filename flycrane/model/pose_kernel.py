@@ -3,9 +3,9 @@ positions in the platform frame (eq. 2), as :mod:`flycrane.model.kinematics` com
 
 Both the statics (:func:`flycrane.model.statics_kernel.statics_row`) and the collision check
 (:func:`flycrane.world.collision_kernel.collision_free_row`) need them; a state check
-(:func:`flycrane.planning.validity_kernel.state_check`) computes them here once and passes
-them to both. One formula, one operation order: the parts' results are bit for bit what
-each computed alone.
+(:func:`flycrane.planning.validity_kernel.state_check`) passes the statics' on to its
+collision test rather than computing them twice. One formula, one operation order: the
+parts' results are bit for bit what each computes alone.
 """
 
 from __future__ import annotations

@@ -80,24 +80,15 @@ def statics_row(q, model, f0_out, v_out, m_out, work) -> float:
     """Statics of one configuration q (9,): f0 (6,), v (6,), m (3,) into the outputs; returns
     the cost (+inf where infeasible or singular; then the outputs are +inf). ``model`` is
     :func:`statics_model`'s tuple, ``work`` :func:`statics_workspace`, so that a row
-    allocates nothing."""
-    rotation_into(q, work[0])
-    drone_offsets_into(q, model[1], model[2], model[3], model[4], work[5])
-    return statics_posed(model, f0_out, v_out, m_out, work)
-
-
-@kernel(inline="always")
-def statics_posed(model, f0_out, v_out, m_out, work) -> float:
-    """:func:`statics_row` of the configuration whose pose is in ``work`` already: its
-    rotation R in work[0] and its drones' positions in the platform frame in work[5]
-    (:mod:`flycrane.model.pose_kernel`), which a state check shares with its collision
-    check."""
+    allocates nothing. The pose it leaves in ``work`` (R in work[0], the drones in the
+    platform frame in work[5], :mod:`flycrane.model.pose_kernel`) is q's: a state check's
+    collision test reuses it."""
     (
         points,
-        _,  # drone_foot, drone_radius, drone_outward, drone_up: in work[5] already
-        _,
-        _,
-        _,
+        foot,
+        radius,
+        outward,
+        up,
         com,
         drone_weight,
         thrust_max,
@@ -110,6 +101,8 @@ def statics_posed(model, f0_out, v_out, m_out, work) -> float:
     ) = model
     platform_weight, threshold, normalized = scalars[0], scalars[1], scalars[2] > 0.0
     rot, drones, unit, jac, rhs, offsets = work
+    rotation_into(q, rot)
+    drone_offsets_into(q, foot, radius, outward, up, offsets)
     # Drones relative to P in world axes: R a'_k, a'_k = F_k + h_k (cos a n_k + sin a z_k).
     for k in range(3):
         for a in range(3):

@@ -23,8 +23,7 @@ import numpy as np
 from flycrane.kernels import kernel
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.cost import CostForm
-from flycrane.model.pose_kernel import drone_offsets_into, rotation_into
-from flycrane.model.statics_kernel import statics_model, statics_posed, statics_workspace
+from flycrane.model.statics_kernel import statics_model, statics_row, statics_workspace
 from flycrane.planning.interpolation import interpolate_into, segment_count
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.world.collision_kernel import (
@@ -66,13 +65,10 @@ def state_check(q, model, work, use_bounds) -> tuple[float, bool]:
     work[CHECKED][0] += 1
     if use_bounds and not in_bounds(q, bounds):
         return math.inf, False
-    # The pose (R, the drones in the platform frame) once, for the statics and the collisions.
-    rot, offsets = statics_work[0], statics_work[5]
-    rotation_into(q, rot)
-    drone_offsets_into(q, smodel[1], smodel[2], smodel[3], smodel[4], offsets)
-    cost = statics_posed(smodel, f0, v, m, statics_work)
+    cost = statics_row(q, smodel, f0, v, m, statics_work)
     if not cost < math.inf:
         return cost, False
+    rot, offsets = statics_work[0], statics_work[5]  # q's pose, as the statics computed it
     return cost, collision_free_posed(q, rot, offsets, kin, scene, collision_work)
 
 
