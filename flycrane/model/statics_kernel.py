@@ -221,9 +221,9 @@ def compiled_statics(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """(f0 (N, 6), v (N, 6), m (N, 3), cost (N,)); singular rows are +inf throughout."""
     q = as_configurations(q)
-    n = len(q)
+    model, n = statics_model(system, form), len(q)
     f0, v, m, cost = np.empty((n, 6)), np.empty((n, 6)), np.empty((n, 3)), np.empty(n)
-    _statics_rows(q, statics_model(system, form), f0, v, m, cost, statics_workspace())
+    _statics_rows(q, model, f0, v, m, cost, statics_workspace())
     return f0, v, m, cost
 
 
