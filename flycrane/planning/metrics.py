@@ -4,10 +4,16 @@ All are computed on the path discretized by the state space (its local paths cut
 pieces at most ``resolution`` long) (default 0.05, about 5 cm of drone travel;
 every waypoint of the path is kept):
 
-- avgC: mean cost over the samples; maxC: largest cost;
+- avgC: the cost's mean along the path, IC over the path's length (the cost at its one
+  configuration where it has no length); maxC: largest cost;
 - MW (mechanical work, Jaillet et al. 2010): sum of the positive cost variations between
   consecutive samples;
 - IC: integral of the cost along the path, trapezoidal in the path's length.
+
+avgC is a mean in length, not over the samples: every local path is cut into whole
+pieces, so a path of many short local paths (a refined one) has more samples per metre
+than one of few long ones, and a mean over samples would weigh its stretches by how many
+waypoints they hold.
 """
 
 from __future__ import annotations
@@ -58,11 +64,18 @@ def path_metrics(
     samples = space.discretize_path(path, resolution)
     costs = cost(samples)
     steps = space.distance(samples[:-1], samples[1:]) if len(samples) > 1 else np.zeros(0)
+    length = float(steps.sum())
+    # +inf through an infeasible configuration, also where a zero step meets it
+    integral = (
+        float(np.sum(0.5 * (costs[:-1] + costs[1:]) * steps))
+        if np.isfinite(costs).all()
+        else float("inf")
+    )
     return PathMetrics(
-        length=float(steps.sum()),
-        avg_cost=float(costs.mean()),
+        length=length,
+        avg_cost=integral / length if length > 0.0 else float(costs.mean()),
         max_cost=float(costs.max()),
         mechanical_work=mechanical_work(costs),
-        cost_integral=float(np.sum(0.5 * (costs[:-1] + costs[1:]) * steps)),
+        cost_integral=integral,
         samples=len(samples),
     )

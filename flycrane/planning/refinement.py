@@ -1,6 +1,6 @@
-"""Anytime refinement of a solved path: lower its average cost avgC (design.md eq. 8, the
-mean of c over the path's samples, :mod:`flycrane.planning.metrics`) in the time it is
-given, keeping the path valid, its end points, its maxC and every least margin of Fig. 6.
+"""Anytime refinement of a solved path: lower its average cost avgC (design.md eq. 8's c,
+its mean along the path, :mod:`flycrane.planning.metrics`) in the time it is given,
+keeping the path valid, its end points, its maxC and every least margin of Fig. 6.
 
 Why: bitrrt stops at its first solution, and smoothing and the polish leave most of its
 path near the hovers' formation (alphas about 1), where drones leaning further out cost
@@ -22,7 +22,7 @@ and moves its waypoints' orientations and formations downhill:
    fine: a coarse waypoint moves a long stretch at once, where a lone fine one only bends
    the formation and raises IC), the last level the first at or below ``finest``.
 
-The IC guard: avgC is a mean per sample, so a longer path through cheap configurations
+The IC guard: avgC is a mean along the path, so a longer path through cheap configurations
 lowers it; without the guard the refinement buys avgC with length. The margin floors: the
 input's least slack, headroom and thrust margin, over its samples at the metrics
 resolution or at Fig. 6's 101 points, whichever is higher: Fig. 6's points can miss the
@@ -64,10 +64,11 @@ from flycrane.planning.result import TerminationCondition
 from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.planning.state_space import ConfigurationSpace
 
-#: Columns of a stretch's statistics: sums over its samples (its first configuration, the
-#: stretch before's last, excluded), then its largest cost and least margins [N].
-TOTAL, COUNT, INTEGRAL, HIGHEST, SLACK, HEADROOM, THRUST = range(7)
-SUMS, MARGINS = [TOTAL, COUNT, INTEGRAL], [SLACK, HEADROOM, THRUST]
+#: Columns of a stretch's statistics: its length and cost integral (sums), then its largest
+#: cost and least margins [N] over its samples (its first configuration, the stretch
+#: before's last, excluded).
+LENGTH, INTEGRAL, HIGHEST, SLACK, HEADROOM, THRUST = range(6)
+SUMS, MARGINS = [LENGTH, INTEGRAL], [SLACK, HEADROOM, THRUST]
 #: Least gain in avgC, relative, that counts as a change: rounding-level moves end a level.
 GAIN_TOLERANCE = 1e-9
 #: How much lower [m] the refined path's robust margin may read than the input's: each
@@ -132,18 +133,17 @@ def _margins(system: CableSystem, q: NDArray) -> tuple[NDArray, NDArray]:
 def _statistics(
     a: NDArray, b: NDArray, space: ConfigurationSpace, system: CableSystem, resolution: float
 ) -> NDArray[np.float64]:
-    """Statistics (K, 7) of the local paths a -> b (K, 9) sampled as the path metrics sample
-    them, columns TOTAL ... THRUST; the integral trapezoidal in the local path's length."""
+    """Statistics (K, 6) of the local paths a -> b (K, 9) sampled as the path metrics sample
+    them, columns LENGTH ... THRUST; the integral trapezoidal in the local path's length."""
     q, owner, index, parts = _points(a, b, space, resolution, ends=True)
     cost, margins = _margins(system, q)
     cost[~space.contains(q)] = np.inf
     inner = index > 0
     starts = np.flatnonzero(~inner)
     trapezoid = np.where(inner & (index < parts[owner]), 1.0, 0.5)
-    out = np.empty((len(a), 7))
-    out[:, TOTAL] = np.add.reduceat(np.where(inner, cost, 0.0), starts)
-    out[:, COUNT] = parts
-    out[:, INTEGRAL] = np.add.reduceat(trapezoid * cost, starts) * space.path_length(a, b) / parts
+    out = np.empty((len(a), 6))
+    out[:, LENGTH] = space.path_length(a, b)
+    out[:, INTEGRAL] = np.add.reduceat(trapezoid * cost, starts) * out[:, LENGTH] / parts
     out[:, HIGHEST] = np.maximum.reduceat(np.where(inner, cost, 0.0), starts)
     out[:, MARGINS] = np.minimum.reduceat(np.where(inner[:, None], margins, np.inf), starts)
     return out
@@ -151,7 +151,7 @@ def _statistics(
 
 def _joined(rows: NDArray, starts: NDArray) -> NDArray[np.float64]:
     """Statistics of consecutive stretches joined: rows[starts[n] : starts[n + 1]] each."""
-    out = np.empty((len(starts), 7))
+    out = np.empty((len(starts), 6))
     out[:, SUMS] = np.add.reduceat(rows[:, SUMS], starts)
     out[:, HIGHEST] = np.maximum.reduceat(rows[:, HIGHEST], starts)
     out[:, MARGINS] = np.minimum.reduceat(rows[:, MARGINS], starts)
@@ -199,8 +199,9 @@ class _Refinement:
         self.robust = robust
         self.rng = np.random.default_rng(seed)
         cost, margins = _margins(system, path[:1])
-        #: The first waypoint as a stretch of its own: avgC counts it once.
-        self.first = np.concatenate([cost, [1.0, 0.0], cost, margins[0]])
+        #: The first waypoint as a stretch of its own, of no length: its cost and margins
+        #: count in maxC and the margin floors.
+        self.first = np.concatenate([[0.0, 0.0], cost, margins[0]])
         self.spacing = config.spacing
         self._use(path)
         whole = _joined(np.vstack([self.first, self.stats]), np.array([0]))[0]
@@ -247,20 +248,22 @@ class _Refinement:
 
     def average(self) -> float:
         """avgC of the path, as :func:`~flycrane.planning.metrics.path_metrics` has it."""
-        total = self.first[TOTAL] + self.stats[:, TOTAL].sum()
-        return float(total / (1.0 + self.stats[:, COUNT].sum()))
+        length = self.stats[:, LENGTH].sum()
+        if not length > 0.0:
+            return float(self.first[HIGHEST])
+        return float(self.stats[:, INTEGRAL].sum() / length)
 
     def kept(self, old: NDArray, new: NDArray) -> NDArray[np.bool_]:
-        """Which replacements of stretches, old sums (K, 3) by new statistics (K, 7), lower
+        """Which replacements of stretches, old sums (K, 2) by new statistics (K, 6), lower
         avgC without raising IC or maxC and keep the margin floors. Each is judged alone;
         avgC's test is linear in the sums, so replacements that do not overlap pass
         together."""
         average = self.average()
-        gain = (old[:, 0] - average * old[:, 1]) - (new[:, TOTAL] - average * new[:, COUNT])
+        gain = (old[:, 1] - average * old[:, 0]) - (new[:, INTEGRAL] - average * new[:, LENGTH])
         return (
-            np.isfinite(new[:, TOTAL])
+            np.isfinite(new[:, INTEGRAL])
             & (gain > GAIN_TOLERANCE * average)
-            & (new[:, INTEGRAL] <= old[:, 2])
+            & (new[:, INTEGRAL] <= old[:, 1])
             & (new[:, HIGHEST] <= self.ceiling)
             & (new[:, MARGINS] >= self.floor).all(axis=1)
         )
@@ -278,7 +281,7 @@ class _Refinement:
         new = _statistics(
             np.concatenate([a, q]), np.concatenate([q, b]), space, self.system, c.resolution
         )
-        pairs = np.stack([new[: len(j)], new[len(j) :]], axis=1).reshape(-1, 7)
+        pairs = np.stack([new[: len(j)], new[len(j) :]], axis=1).reshape(-1, 6)
         old = self.stats[j - 1][:, SUMS] + self.stats[j][:, SUMS]
         moves = np.flatnonzero(self.kept(old, _joined(pairs, np.arange(0, len(pairs), 2))))
         moves = moves[self.validity.is_valid(q[moves])]
@@ -352,7 +355,7 @@ class _Refinement:
         b[last] = self.path[k]
         starts = np.flatnonzero(index == 0)
         rows = _statistics(a, b, space, self.system, c.resolution)
-        sums = np.vstack([np.zeros(3), np.cumsum(self.stats[:, SUMS], axis=0)])
+        sums = np.vstack([np.zeros(2), np.cumsum(self.stats[:, SUMS], axis=0)])
         kept = np.flatnonzero(self.kept(sums[k] - sums[i], _joined(rows, starts)))
         taken = np.zeros(len(self.path), dtype=bool)
         # From the path's end backwards: a splice leaves the indices before it as they were.
