@@ -29,7 +29,7 @@ from pydantic import (
     model_validator,
 )
 
-from flycrane.errors import FieldProblem, SystemSpecError, dotted, readable_errors
+from flycrane.errors import FieldProblem, InputError, SystemSpecError, dotted, readable_errors
 from flycrane.quantities import (
     MAX_FORCE,
     MAX_GRAVITY,
@@ -40,6 +40,7 @@ from flycrane.quantities import (
     PerturbationRadius,
     Point,
 )
+from flycrane.user_files import read_text
 
 #: Cable pairs of each drone, 0-based: drone k hangs from cables DRONE_CABLES[k].
 DRONE_CABLES: tuple[tuple[int, int], ...] = ((0, 5), (1, 2), (3, 4))
@@ -280,11 +281,9 @@ def load_system(path: str | Path) -> SystemSpec:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as error:
-        raise SystemSpecError(
-            [FieldProblem("file", error.strerror or str(error))], str(path)
-        ) from None
+        text = read_text(path)
+    except InputError as error:
+        raise SystemSpecError(error.problems, str(path)) from None
     try:
         if path.suffix.lower() == ".toml":
             data = tomllib.loads(text)

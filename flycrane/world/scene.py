@@ -32,6 +32,7 @@ from flycrane.quantities import (
     Orientation,
     Point,
 )
+from flycrane.user_files import MAX_MESH_BYTES, read_text, regular_file
 
 StrictIndex = Annotated[int, Field(ge=0, strict=True)]
 #: Every scene schema: numbers finite (flycrane.quantities), unknown fields refused.
@@ -113,11 +114,15 @@ class Mesh(_Shape):
 
         path = Path(str(self.file)) if base_dir is None else base_dir / str(self.file)
         try:
-            mesh = trimesh.load_mesh(path)
+            mesh = trimesh.load_mesh(regular_file(path, "mesh.file", MAX_MESH_BYTES))
             vertices = self.scale * np.asarray(mesh.vertices, float)
             faces = np.asarray(mesh.faces, int)
             _check_extent(vertices)
-        except (OSError, ValueError, AttributeError) as error:
+        except InputError as error:
+            problems = [FieldProblem(p.field, f"{path}: {p.reason}") for p in error.problems]
+            raise SceneError(problems) from None
+        # IndexError: trimesh's OBJ reader on a face that names a vertex the file lacks
+        except (OSError, ValueError, AttributeError, IndexError) as error:
             raise SceneError([FieldProblem("mesh.file", f"{path}: {error}")]) from None
         return vertices, faces
 
@@ -288,7 +293,9 @@ def load_scene(name_or_path: str | Path) -> tuple[SceneSpec, Path]:
     """Load a scene by name or path; returns it with the directory its mesh files live in."""
     path = scene_path(name_or_path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, tomllib.TOMLDecodeError) as error:
+        data = tomllib.loads(read_text(path))
+    except InputError as error:
+        raise SceneError(error.problems, str(path)) from None
+    except tomllib.TOMLDecodeError as error:
         raise SceneError([FieldProblem("file", str(error))], str(path)) from None
     return scene_from_dict(data, str(path)), path.parent

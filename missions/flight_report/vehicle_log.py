@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from pymavlink import mavutil
 
 from flycrane.errors import FieldProblem, InputError
+from flycrane.user_files import regular_file
 from missions.autopilots.location import VehicleFrame
 from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
 from missions.options import GeodeticOrigin
@@ -136,6 +137,14 @@ def read_vehicle_log(
     InputError
         If the file is not a readable tlog, or has no GLOBAL_POSITION_INT with a position.
     """
+    # mavutil takes a path that names no file for a serial device, and reads a device or
+    # a FIFO without end: only a regular file is a log
+    try:
+        regular_file(Path(path), name)
+    except InputError as error:
+        raise InputError(
+            [FieldProblem(name, f"{path}: {p.reason}") for p in error.problems]
+        ) from None
     try:
         log = mavutil.mavlink_connection(str(path), dialect="ardupilotmega", robust_parsing=True)
     except OSError as error:

@@ -116,7 +116,14 @@ def task_specs(
     try:
         scene, scene_dir = load_scene(task.scene)
     except InputError as error:
-        raise InputError([FieldProblem("scene", p.reason) for p in error.problems]) from None
+        where = f"{error.source}: " if error.source else ""
+        problems = [
+            FieldProblem(
+                "scene", p.reason if p.field == "scene" else f"{where}{p.field}: {p.reason}"
+            )
+            for p in error.problems
+        ]
+        raise InputError(problems) from None
     return system, scene, scene_dir
 
 

@@ -17,6 +17,7 @@ from flycrane.errors import FieldProblem, InputError
 from flycrane.model.system_spec import SystemSpec, problems_from_validation_error
 from flycrane.planning.planners import PlannerOptions
 from flycrane.quantities import Configuration, Orientation, Point
+from flycrane.user_files import read_text
 from flycrane.world.scene import Mesh, SceneSpec, list_scenes
 from missions.options import MissionOptions
 
@@ -65,9 +66,12 @@ def load_task(path: str | Path) -> tuple[TaskSpec, Path]:
     """A task from a .json or .toml file, and the directory relative paths start from."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path)
+    except InputError as error:
+        raise InputError(error.problems, str(path)) from None
+    try:
         data = tomllib.loads(text) if path.suffix.lower() == ".toml" else json.loads(text)
-    except (OSError, ValueError) as error:
+    except ValueError as error:
         raise InputError([FieldProblem("file", str(error))], str(path)) from None
     return task_from_dict(data, str(path)), path.parent
 

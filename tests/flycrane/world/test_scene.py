@@ -78,6 +78,29 @@ def test_missing_scene_and_missing_mesh_file(tmp_path):
         PlanningProblem.from_scene(scene, base_dir=tmp_path)
 
 
+def test_unreadable_scene_and_mesh_files_name_the_field(tmp_path):
+    (tmp_path / "bad.toml").write_bytes(b"\xff\xfe")
+    with pytest.raises(SceneError, match=r"file: not UTF-8 text") as info:
+        load_scene(tmp_path / "bad.toml")
+    assert info.value.source == str(tmp_path / "bad.toml")
+    with pytest.raises(SceneError, match="file: not a regular file"):
+        load_scene("/dev/zero")
+    # a face naming a vertex the file does not have (trimesh's reader raises IndexError)
+    (tmp_path / "bad.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
+    (tmp_path / "zero.obj").symlink_to("/dev/zero")
+    for name, reason in (("bad.obj", "out of bounds"), ("zero.obj", "not a regular file")):
+        scene = scene_from_dict(
+            {
+                "obstacles": [{"kind": "mesh", "file": name}],
+                "bounds": BOUNDS,
+                "start": HOVER,
+                "goal": HOVER,
+            }
+        )
+        with pytest.raises(SceneError, match=rf"mesh\.file: .*{name}: .*{reason}"):
+            PlanningProblem.from_scene(scene, base_dir=tmp_path)
+
+
 def test_benchmark_start_and_goal_are_valid(benchmark):
     validity = benchmark.validity
     assert validity.is_valid(np.stack([benchmark.start, benchmark.goal])).all()

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega
 
+from flycrane.errors import InputError
 from missions.flight_report.vehicle_log import read_vehicle_log
 from missions.options import GeodeticOrigin
 from tests.missions.helpers import approximate_geodetic, ardupilot_distance_ne
@@ -67,3 +68,15 @@ def test_a_log_without_the_local_position_is_read_from_its_global_position(tmp_p
     error = estimated.enu - POINT
     assert np.abs(error[:, :2]).max() <= 0.012
     assert error[:, 2] == pytest.approx(np.zeros(10), abs=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("name", "reason"),
+    [("d1.tlog", "No such file"), (".", "not a regular file"), ("/dev/zero", "not a regular file")],
+)
+def test_only_a_regular_file_is_read_as_a_log(tmp_path, monkeypatch, name, reason):
+    """mavutil would open a path that names no file as a serial port, and read a device
+    without end."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match=rf"drone1: {name}: {reason}"):
+        read_vehicle_log(Path(name), "drone1", ORIGIN, HOME_HEIGHT)
