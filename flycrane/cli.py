@@ -11,24 +11,32 @@ import argparse
 import gc
 import json
 import logging
+import math
 import sys
 from collections.abc import Callable, Sequence
 from importlib.metadata import entry_points
 from pathlib import Path
 
 import numpy as np
+from pydantic import TypeAdapter, ValidationError
 
-from flycrane.errors import FlyCraneError
+from flycrane.errors import FieldProblem, FlyCraneError, InputError
+from flycrane.execution import scheduler_address
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.cost import CostForm
 from flycrane.model.kinematics import as_configurations
 from flycrane.model.statics import evaluate_statics
 from flycrane.model.statics_summary import statics_summary
 from flycrane.model.system_spec import SystemSpec, load_system, save_system
+from flycrane.quantities import MAX_TIME_BUDGET, Configuration
 from flycrane.world.scene import list_scenes, load_scene
 
 #: The configuration the quick start evaluates: hovering 5 m up, level, alphas at 1 rad.
 DEFAULT_CONFIGURATION = (0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0)
+#: The names of q's components, in order (design.md s.3).
+Q_NAMES = ("x", "y", "z", "phi", "theta", "sigma", "alpha1", "alpha2", "alpha3")
+#: Most seeds ``bench`` runs per scene and planner: every run's record is kept in memory.
+MAX_RUNS = 10_000
 
 
 def _load_spec(path: str | None) -> SystemSpec:
@@ -73,6 +81,12 @@ def format_statics(summary: dict) -> str:
 
 def _cmd_statics(args: argparse.Namespace) -> int:
     system = CableSystem.from_spec(_load_spec(args.system))
+    try:  # the bounds every input schema keeps (flycrane.quantities), as the service's
+        TypeAdapter(Configuration).validate_python(tuple(args.q))
+    except ValidationError as error:
+        names = [f"q.{Q_NAMES[int(e['loc'][0])]}" for e in error.errors()]
+        problems = [FieldProblem(n, e["msg"]) for n, e in zip(names, error.errors(), strict=True)]
+        raise InputError(problems) from None
     q = as_configurations(args.q)
     report = evaluate_statics(system, q)
     summary = statics_summary(system, report, CostForm(args.cost_form))
@@ -163,19 +177,27 @@ def scene_labels(scenes: Sequence[str]) -> list[str]:
     return [stem if stems.count(stem) == 1 else f"{stem}-{k + 1}" for k, stem in enumerate(stems)]
 
 
-def _positive(kind: type[int] | type[float]) -> Callable[[str], float]:
-    """An argparse type: a number of ``kind`` above 0."""
+def _positive(kind: type[int] | type[float], most: float = math.inf) -> Callable[[str], float]:
+    """An argparse type: a finite number of ``kind`` above 0 and at most ``most``."""
 
     def parse(text: str) -> float:
         try:
             value = kind(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not value > 0:
-            raise argparse.ArgumentTypeError(f"must be above 0, got {text}")
+        if not 0 < value <= most:
+            raise argparse.ArgumentTypeError(f"must be above 0 and at most {most:g}, got {text}")
         return value
 
     return parse
+
+
+def _scheduler(text: str) -> str:
+    """An argparse type: a Dask scheduler's address (:func:`scheduler_address`)."""
+    try:
+        return scheduler_address(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
@@ -237,10 +259,16 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         "ompl-rrtconnect; default: trrt rrt ompl-trrt ompl-rrt (the paper's Table I)",
     )
     bench.add_argument(
-        "--runs", type=_positive(int), default=100, help="seeds per scene and planner (100)"
+        "--runs",
+        type=_positive(int, MAX_RUNS),
+        default=100,
+        help=f"seeds per scene and planner (100; at most {MAX_RUNS})",
     )
     bench.add_argument(
-        "--budget", type=_positive(float), default=60.0, help="planner seconds per run (60)"
+        "--budget",
+        type=_positive(float, MAX_TIME_BUDGET),
+        default=60.0,
+        help=f"planner seconds per run (60; at most {MAX_TIME_BUDGET:g})",
     )
     bench.add_argument(
         "--step", type=_positive(float), help="extension step (default: planner default)"
@@ -248,6 +276,7 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
     bench.add_argument("--workers", type=_positive(int), help="processes (default: all CPUs)")
     bench.add_argument(
         "--cluster",
+        type=_scheduler,
         metavar="ADDRESS",
         help="run on the Dask cluster whose scheduler is at ADDRESS (tcp://host:8786) "
         "instead of local processes",

@@ -49,6 +49,8 @@ Point = tuple[Coordinate, Coordinate, Coordinate]
 Orientation = tuple[Angle, Angle, Angle]
 #: A configuration q (design.md s.3): position [m] and six angles [rad], all bounded.
 Configuration = tuple[Coordinate, Coordinate, Coordinate, Angle, Angle, Angle, Angle, Angle, Angle]
+#: Longest planning time a run may be given [s]: a day.
+MAX_TIME_BUDGET = 86_400.0
 #: Seeds of the random number generators: OMPL's seed is a uint_fast32_t (at least 32
 #: bits) and gets seed + 1.
 #: The largest seed (the generators take 32 bits).

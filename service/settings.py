@@ -18,6 +18,8 @@ from pathlib import Path
 from pydantic import AnyHttpUrl, Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from flycrane.execution import scheduler_address
+
 #: Networks vehicles may be reached on by default: this machine only.
 DEFAULT_UPLOAD_NETWORKS = (IPv4Network("127.0.0.0/8"),)
 #: Serial devices vehicles may be on by default: USB adapters and flight controllers (by
@@ -132,18 +134,17 @@ class Settings(BaseSettings):
     @field_validator("executor")
     @classmethod
     def _executor_address(cls, value: str) -> str:
-        scheme, _, rest = value.partition("://")
-        if value != "local" and not (scheme in ("dask", "tcp", "tls") and rest):
-            raise ValueError("must be 'local' or a Dask scheduler address, dask://host:port")
+        if value != "local":
+            try:
+                scheduler_address(value)
+            except ValueError as error:
+                raise ValueError(f"must be 'local' or a Dask scheduler address: {error}") from None
         return value
 
     @property
     def dask_scheduler(self) -> str | None:
         """The Dask scheduler's address (``tcp://host:port``), None for the local pool."""
-        if self.executor == "local":
-            return None
-        scheme, _, rest = self.executor.partition("://")
-        return f"tcp://{rest}" if scheme == "dask" else self.executor
+        return None if self.executor == "local" else scheduler_address(self.executor)
 
     @model_validator(mode="after")
     def _read_token_needs_api_token(self) -> Settings:

@@ -30,7 +30,7 @@ from flycrane.planning.result import PlannerResult, PlanningProgress, Terminatio
 from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.planning.smoothing import ShortcutConfig, shortcut_path
 from flycrane.planning.state_space import ConfigurationSpace
-from flycrane.quantities import MAX_LENGTH, Seed
+from flycrane.quantities import MAX_LENGTH, MAX_TIME_BUDGET, Seed
 
 Algorithm = Literal["trrt", "rrt", "bitrrt", "ompl-trrt", "ompl-rrt", "ompl-rrtconnect"]
 #: Options of the unidirectional T-RRT that the bidirectional one has no use for.
@@ -55,7 +55,9 @@ class PlannerOptions(BaseModel):
         "not check",
     )
     seed: Seed = Field(0, description="random seed: same seed, same path")
-    time_budget: float = Field(60.0, gt=0, le=86_400, description="planning time limit [s]")
+    time_budget: float = Field(
+        60.0, gt=0, le=MAX_TIME_BUDGET, description="planning time limit [s]"
+    )
     step: float | None = Field(
         None,
         gt=0,

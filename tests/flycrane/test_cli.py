@@ -45,10 +45,20 @@ def test_bad_input_is_a_message_and_exit_status_2(tmp_path, capsys):
     assert "platform_mass" in err and "Traceback" not in err
 
 
+def test_a_configuration_beyond_the_schemas_bounds_is_refused(capsys):
+    """1e300 m would read as a singular Jacobian, not as an input out of range."""
+    assert main(["statics", "--q", "1e300", "0", "5", "0", "0.2", "0", "1", "1", "nan"]) == 2
+    err = capsys.readouterr().err
+    assert "q.x: Input should be less than or equal to 10000" in err
+    assert "q.alpha3: Input should be a finite number" in err
+
+
 @pytest.mark.parametrize(
     ("option", "value"),
-    [("--runs", "0"), ("--budget", "-1"), ("--step", "-0.1"), ("--step", "0"),
-     ("--workers", "0"), ("--workers", "two")],
+    [("--runs", "0"), ("--runs", "100000000"), ("--budget", "-1"), ("--budget", "inf"),
+     ("--budget", "nan"), ("--step", "-0.1"), ("--step", "0"), ("--workers", "0"),
+     ("--workers", "two"), ("--cluster", "garbage"), ("--cluster", "tcp://host"),
+     ("--cluster", "dask://host:0")],
 )  # fmt: skip
 def test_a_bad_bench_setting_is_refused_before_any_run(option, value, tmp_path, capsys):
     """argparse exits 2 naming the option; nothing is planned or written."""

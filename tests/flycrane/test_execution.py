@@ -15,7 +15,13 @@ from pathlib import Path
 import pytest
 
 from flycrane.analysis.benchmark import run_benchmark
-from flycrane.execution import DaskExecutor, executor_for, local_executor, stop_executor
+from flycrane.execution import (
+    DaskExecutor,
+    executor_for,
+    local_executor,
+    scheduler_address,
+    stop_executor,
+)
 
 #: Columns that depend on the seed only (times depend on the machine).
 SEEDED = ("scene", "planner", "seed", "status", "nodes", "attempts", "avg_cost", "max_cost")
@@ -105,3 +111,19 @@ def test_stopping_a_local_pool_kills_its_running_job(tmp_path, monkeypatch):
         pytest.fail(f"worker {pid} still running after stop_executor")
     # The pool's own thread ends the future once it sees its worker gone: soon, not at once.
     assert wait([future], timeout=30).done == {future}
+
+
+@pytest.mark.parametrize(
+    ("address", "expected"),
+    [("tcp://10.0.0.5:8786", "tcp://10.0.0.5:8786"), ("dask://host:8786", "tcp://host:8786"),
+     ("tls://[::1]:8786", "tls://[::1]:8786")],
+)  # fmt: skip
+def test_scheduler_addresses_as_dask_takes_them(address, expected):
+    assert scheduler_address(address) == expected
+
+
+@pytest.mark.parametrize("address", ["garbage", "tcp://host", "tcp://:8786", "udp://h:1",
+                                     "tcp://h:0", "tcp://h:65536", "tcp://h:port"])  # fmt: skip
+def test_a_malformed_scheduler_address_is_refused_before_a_client_is_made(address):
+    with pytest.raises(ValueError, match=r"scheduler address|port in 1\.\.65535"):
+        scheduler_address(address)

@@ -153,3 +153,23 @@ def test_an_empty_or_weak_token_is_refused_not_ignored(tmp_path, settings, field
     with pytest.raises(ValidationError) as info:
         Settings(data_dir=tmp_path, **settings)
     assert field in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("executor", "scheduler"),
+    [("local", None), ("dask://10.0.0.5:8786", "tcp://10.0.0.5:8786"),
+     ("tls://host:8786", "tls://host:8786"), ("dask://host", None), ("tcp://:8786", None),
+     ("dask://host:99999", None), ("garbage", None)],
+)  # fmt: skip
+def test_the_executor_is_local_or_a_whole_scheduler_address(tmp_path, executor, scheduler):
+    """A scheduler without a port used to pass, and Dask's client then failed at start-up
+    with a traceback."""
+    from pydantic import ValidationError
+
+    from service.settings import Settings
+
+    if scheduler is None and executor != "local":
+        with pytest.raises(ValidationError, match="executor"):
+            Settings(data_dir=tmp_path, executor=executor)
+        return
+    assert Settings(data_dir=tmp_path, executor=executor).dask_scheduler == scheduler
