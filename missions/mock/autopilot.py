@@ -128,15 +128,17 @@ class MockConfig:
             problems.append(
                 FieldProblem("component_id", f"must be in 0..255, got {self.component_id}")
             )
-        if not self.heartbeat_interval_s > 0:
+        if not 0 < self.heartbeat_interval_s < math.inf:
             problems.append(
                 FieldProblem(
                     "heartbeat_interval_s", f"must be > 0, got {self.heartbeat_interval_s}"
                 )
             )
-        if self.boot_no_space_s < 0:
+        if not 0 <= self.boot_no_space_s < math.inf:
             problems.append(
-                FieldProblem("boot_no_space_s", f"must be >= 0, got {self.boot_no_space_s}")
+                FieldProblem(
+                    "boot_no_space_s", f"must be finite and >= 0, got {self.boot_no_space_s}"
+                )
             )
         if self.max_items < 1:
             problems.append(FieldProblem("max_items", f"must be >= 1, got {self.max_items}"))

@@ -11,6 +11,7 @@ a one-line message (the ``flycrane`` main turns the typed errors into that).
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import threading
@@ -86,8 +87,9 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Start the mock and serve until SIGINT/SIGTERM or ``--duration``."""
-    if args.duration is not None and not args.duration > 0:
-        raise InputError([FieldProblem("--duration", f"must be > 0, got {args.duration}")])
+    if args.duration is not None and not 0 < args.duration < math.inf:
+        problem = FieldProblem("--duration", f"must be finite and > 0, got {args.duration}")
+        raise InputError([problem])
     faults = FaultInjection(
         drop_incoming=args.drop,
         drop_outgoing=args.drop,

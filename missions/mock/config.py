@@ -3,14 +3,20 @@ it departs from the ideal (:mod:`.kinematic_flight` says what each does)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from flycrane.errors import FieldProblem, InputError
+from flycrane.quantities import MAX_SEED
 from missions.autopilots.ardupilot import MIN_GROUND_SPEED
 
 
 def _positive(owner: str, **values: float) -> None:
-    problems = [FieldProblem(k, f"must be > 0, got {v}") for k, v in values.items() if not v > 0]
+    problems = [
+        FieldProblem(k, f"must be finite and > 0, got {v}")
+        for k, v in values.items()
+        if not 0 < v < math.inf
+    ]
     if problems:
         raise InputError(problems, source=owner)
 
@@ -29,6 +35,8 @@ class Geodetic:
             problems.append(FieldProblem("lat_deg", f"must be in [-90, 90], got {self.lat_deg}"))
         if not -180.0 <= self.lon_deg <= 180.0:
             problems.append(FieldProblem("lon_deg", f"must be in [-180, 180], got {self.lon_deg}"))
+        if not math.isfinite(self.alt_m):
+            problems.append(FieldProblem("alt_m", f"must be finite, got {self.alt_m}"))
         if problems:
             raise InputError(problems, source="Geodetic")
 
@@ -74,17 +82,29 @@ class Imperfections:
 
     def __post_init__(self) -> None:
         problems = []
-        if self.start_delay_s < 0:
-            problems.append(FieldProblem("start_delay_s", f"must be >= 0: {self.start_delay_s}"))
-        if not self.speed_scale > 0:
-            problems.append(FieldProblem("speed_scale", f"must be > 0: {self.speed_scale}"))
+        if not 0 <= self.start_delay_s < math.inf:
+            problems.append(
+                FieldProblem("start_delay_s", f"must be finite and >= 0: {self.start_delay_s}")
+            )
+        if not 0 < self.speed_scale < math.inf:
+            problems.append(
+                FieldProblem("speed_scale", f"must be finite and > 0: {self.speed_scale}")
+            )
         if not 0.0 <= self.waypoint_slowdown <= 1.0:
             problems.append(
                 FieldProblem("waypoint_slowdown", f"must be in [0, 1]: {self.waypoint_slowdown}")
             )
-        if self.position_noise_m < 0:
+        if not 0 <= self.position_noise_m < math.inf:
             problems.append(
-                FieldProblem("position_noise_m", f"must be >= 0: {self.position_noise_m}")
+                FieldProblem(
+                    "position_noise_m", f"must be finite and >= 0: {self.position_noise_m}"
+                )
             )
+        if not math.isfinite(self.clock_offset_s):
+            problems.append(
+                FieldProblem("clock_offset_s", f"must be finite: {self.clock_offset_s}")
+            )
+        if not 0 <= self.seed <= MAX_SEED:
+            problems.append(FieldProblem("seed", f"must be in 0..{MAX_SEED}: {self.seed}"))
         if problems:
             raise InputError(problems, source="Imperfections")

@@ -21,6 +21,7 @@ the sprint's factor.
 from __future__ import annotations
 
 import itertools
+import math
 import threading
 import time
 from collections.abc import Iterator
@@ -56,9 +57,9 @@ class SimClock:
         max_lag_steps: int = 5,
     ) -> None:
         problems = [
-            FieldProblem(name, f"must be > 0, got {value}")
+            FieldProblem(name, f"must be finite and > 0, got {value}")
             for name, value in (("speedup", speedup), ("step_s", step_s))
-            if not value > 0
+            if not 0 < value < math.inf
         ]
         if max_lag_steps < 1:
             problems.append(FieldProblem("max_lag_steps", f"must be >= 1, got {max_lag_steps}"))

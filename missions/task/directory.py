@@ -70,6 +70,13 @@ def mission_file(drone: int, suffix: str) -> str:
     return f"drone{drone}.{suffix}"
 
 
+#: Every file a task's run writes (the table above).
+OWN_FILES = (
+    TASK_FILE, PATH_FILE, TRACKS_FILE, SUMMARY_FILE, MCAP_FILE, PROFILE_FILE,
+    *(mission_file(k, suffix) for k in DRONES for suffix in MISSION_SUFFIXES),
+)  # fmt: skip
+
+
 class TaskDirectoryError(FlyCraneError):
     """A file of a task's directory is missing or unreadable; ``name`` says which."""
 
@@ -320,7 +327,15 @@ class TaskDirectory:
         self.write_text(TRACKS_FILE, dumps(tracks.as_dict()))
 
     def write_summary(self, outcome: TaskOutcome) -> TaskOutcome:
-        """Write summary.json; the outcome returned lists it among the artifacts."""
+        """Write summary.json, the run's last file; the outcome returned lists it among the
+        artifacts. Files an earlier run wrote here and this one did not are removed first:
+        beside a failed run's summary, an earlier run's missions would be taken for its
+        own and could be flown. ``task.json`` stays (it may be the task this run read);
+        other files are not the task's and are left alone."""
+        written = set(self.artifacts.values())
+        for name in OWN_FILES:
+            if name not in written and name not in (TASK_FILE, SUMMARY_FILE):
+                (self.path / name).unlink(missing_ok=True)
         (self.path / SUMMARY_FILE).write_text(dumps(outcome.as_dict()), encoding="utf-8")
         self.record(SUMMARY_FILE)
         return TaskOutcome(**{**outcome.__dict__, "artifacts": dict(self.artifacts)})

@@ -57,7 +57,7 @@ def test_mock_autopilot_process_answers_a_heartbeat_waiting_client():
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--speedup", "0"], "speedup: must be > 0"),
+        (["--speedup", "0"], "speedup: must be finite and > 0"),
         (["--port", "http"], "invalid int value: 'http'"),
     ],
 )
@@ -82,7 +82,16 @@ def test_bad_arguments_exit_non_zero_with_a_message(args, message):
         (["--system-id", "0"], "system_id: must be in 1..255"),
         (["--slowdown", "2"], "waypoint_slowdown: must be in [0, 1]"),
         (["--connection", "carrier-pigeon"], "expected udpin:HOST:PORT"),
-        (["--duration", "0"], "--duration: must be > 0"),
+        (["--duration", "0"], "--duration: must be finite and > 0"),
+        # each used to start a mock that could not run, or to end in a traceback
+        (["--duration", "inf"], "--duration: must be finite and > 0"),
+        (["--speedup", "inf"], "speedup: must be finite and > 0"),
+        (["--seed", "-1"], "seed: must be in 0..4294967295"),
+        (["--noise", "nan"], "position_noise_m: must be finite and >= 0"),
+        (["--speed-scale", "inf"], "speed_scale: must be finite and > 0"),
+        (["--start-delay", "nan"], "start_delay_s: must be finite and >= 0"),
+        (["--boot-no-space", "inf"], "boot_no_space_s: must be finite and >= 0"),
+        (["--home", "0", "0", "inf"], "alt_m: must be finite"),
     ],
 )
 def test_invalid_values_are_named(capsys, args, message):

@@ -66,6 +66,23 @@ def test_default_rescue_task_is_done_with_every_artifact(rescue):
     assert 0.0 < summary["mission"]["timing_tolerance"]["start_offset"]
 
 
+def test_a_run_that_ends_early_leaves_no_earlier_run_s_missions_beside_it(rescue, tmp_path):
+    """A user re-plans into the directory of a finished task and the run is cancelled: the
+    old missions must not stand beside the new summary as if they were its own."""
+    _, done = rescue
+    for path in done.iterdir():
+        (tmp_path / path.name).write_bytes(path.read_bytes())
+    (tmp_path / "notes.txt").write_text("mine", encoding="utf-8")
+    task_before = (tmp_path / "task.json").read_bytes()
+    outcome = run_task(TASK, tmp_path, should_stop=lambda: True)
+    assert outcome.status == "cancelled"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "summary.json", "task.json"]
+    assert (tmp_path / "task.json").read_bytes() == task_before  # it may be the task read
+    assert json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))["status"] == (
+        "cancelled"
+    )
+
+
 def test_tracks_store_the_modelled_motions_at_the_rate_readers_need(rescue):
     """tracks.json scales with the mission's duration at 20 samples a second (issue 22,
     item 5: a 1 km task wrote 158 MB at the model's 100), and its motion read back by
