@@ -50,10 +50,18 @@ class PositionErrorModel(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    common_horizontal: float = Field(ge=0, le=100, description="[m] shared by all drones")
-    common_vertical: float = Field(ge=0, le=100, description="[m] shared by all drones")
-    relative_horizontal: float = Field(ge=0, le=100, description="[m] between two drones")
-    relative_vertical: float = Field(ge=0, le=100, description="[m] between two drones")
+    common_horizontal: float = Field(
+        ge=0, le=100, description="[m] shared by all drones", strict=True
+    )
+    common_vertical: float = Field(
+        ge=0, le=100, description="[m] shared by all drones", strict=True
+    )
+    relative_horizontal: float = Field(
+        ge=0, le=100, description="[m] between two drones", strict=True
+    )
+    relative_vertical: float = Field(
+        ge=0, le=100, description="[m] between two drones", strict=True
+    )
     height_source: Literal["gnss", "barometer", "any"] = Field(
         "gnss", description="where each drone's height must come from (EK3_SRC1_POSZ)"
     )

@@ -56,22 +56,35 @@ class PlannerOptions(BaseModel):
     )
     seed: Seed = Field(0, description="random seed: same seed, same path")
     time_budget: float = Field(
-        60.0, gt=0, le=MAX_TIME_BUDGET, description="planning time limit [s]"
+        60.0,
+        gt=0,
+        le=MAX_TIME_BUDGET,
+        description="planning time limit [s]",
+        strict=True,
     )
     step: float | None = Field(
         None,
         gt=0,
         le=MAX_LENGTH,
         description="extension step delta [state-space distance]; None: 0.1 x extent",
+        strict=True,
     )
-    goal_bias: float = Field(0.05, ge=0, le=1)
+    goal_bias: float = Field(0.05, ge=0, le=1, strict=True)
     goal_connection: float = Field(
-        2.0, gt=0, le=100, description="try the goal from nodes within this many steps of it"
+        2.0,
+        gt=0,
+        le=100,
+        description="try the goal from nodes within this many steps of it",
+        strict=True,
     )
-    init_temperature: float | None = Field(None, gt=0, description="None: 1e-6 c(q_start)")
-    temperature_rate: float = Field(0.1, ge=0, le=1, description="T_rate")
-    refinement_ratio: float = Field(0.1, ge=0, le=1, description="rho")
-    cost_threshold: float | None = Field(None, gt=0, description="c_max; None: no threshold")
+    init_temperature: float | None = Field(
+        None, gt=0, description="None: 1e-6 c(q_start)", strict=True
+    )
+    temperature_rate: float = Field(0.1, ge=0, le=1, description="T_rate", strict=True)
+    refinement_ratio: float = Field(0.1, ge=0, le=1, description="rho", strict=True)
+    cost_threshold: float | None = Field(
+        None, gt=0, description="c_max; None: no threshold", strict=True
+    )
     smoothing_attempts: int = Field(
         100, ge=0, le=100_000, strict=True, description="random shortcuts"
     )
@@ -80,6 +93,7 @@ class PlannerOptions(BaseModel):
         description="reshape the formation a little at the waypoints to raise the path's "
         "least thrust margin and headroom (flycrane/planning/formation_polish.py); None: "
         "on for bitrrt, off for the paper's planners and OMPL's",
+        strict=True,
     )
     improve_time: float = Field(
         0.0,
@@ -90,6 +104,7 @@ class PlannerOptions(BaseModel):
         "seconds suffice, it stops once converged); 0, the default: off, because the refined "
         "paths took longer to fly and one came closer to an obstacle on SITL (BENCHMARKS.md "
         '"Anytime improvement")',
+        strict=True,
     )
 
     @model_validator(mode="after")

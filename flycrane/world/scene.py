@@ -160,11 +160,15 @@ class Bounds(BaseModel):
 
     position_low: Point
     position_high: Point
-    max_tilt: float = Field(0.6, gt=0.0, le=math.pi, description="largest theta [rad]")
-    alpha_low: float = Field(0.3, description="[rad]")
-    alpha_high: float = Field(1.8, description="[rad]")
-    sigma_low: float = Field(-math.pi, ge=-2 * math.pi, description="torsion range [rad]")
-    sigma_high: float = Field(math.pi, le=2 * math.pi, description="torsion range [rad]")
+    max_tilt: float = Field(0.6, gt=0.0, le=math.pi, description="largest theta [rad]", strict=True)
+    alpha_low: float = Field(0.3, description="[rad]", strict=True)
+    alpha_high: float = Field(1.8, description="[rad]", strict=True)
+    sigma_low: float = Field(
+        -math.pi, ge=-2 * math.pi, description="torsion range [rad]", strict=True
+    )
+    sigma_high: float = Field(
+        math.pi, le=2 * math.pi, description="torsion range [rad]", strict=True
+    )
 
     @model_validator(mode="after")
     def _ordered(self) -> Bounds:
@@ -198,6 +202,7 @@ class CollisionSettings(BaseModel):
         description="least distance from every robot body to the obstacles and the ground "
         "[m]: obstacles are grown by it and the ground raised, so flown deviations of up "
         "to this size cannot touch them",
+        strict=True,
     )
 
 
@@ -209,7 +214,7 @@ class SceneSpec(BaseModel):
     name: str = Field("scene", max_length=200)
     description: str = Field("", max_length=10_000)
     obstacles: tuple[Shape, ...] = ()
-    ground: bool = Field(True, description="the plane z = 0 is an obstacle")
+    ground: bool = Field(True, description="the plane z = 0 is an obstacle", strict=True)
     payload: Payload = Field(default_factory=Payload)
     bounds: Bounds
     start: Configuration

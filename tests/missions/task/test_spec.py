@@ -1,0 +1,56 @@
+"""A task's numbers must be given as numbers: ``true`` or ``"60"`` is refused naming the
+field, never read as 1 or 60 (flycrane.quantities). Found over HTTP and in task files,
+where a time budget of ``true`` planned for one second."""
+
+from __future__ import annotations
+
+import pytest
+
+from flycrane.errors import InputError
+from missions.task.spec import task_from_dict
+
+
+@pytest.mark.parametrize(
+    ("task", "field"),
+    [
+        ({"planner": {"time_budget": True}}, "planner.time_budget"),
+        ({"planner": {"time_budget": "60"}}, "planner.time_budget"),
+        ({"planner": {"step": "0.1"}}, "planner.step"),
+        ({"planner": {"improve_time": "5"}}, "planner.improve_time"),
+        ({"planner": {"goal_bias": True}}, "planner.goal_bias"),
+        ({"planner": {"polish": "yes"}}, "planner.polish"),
+        ({"mission": {"max_acceleration": "0.25"}}, "mission.max_acceleration"),
+        ({"mission": {"position_error": {"common_horizontal": "0.1", "common_vertical": 0.1,
+                                         "relative_horizontal": 0.1,
+                                         "relative_vertical": 0.1}}},
+         "mission.position_error.common_horizontal"),
+    ],
+)  # fmt: skip
+def test_a_number_given_as_text_or_a_truth_value_is_refused(task, field):
+    with pytest.raises(InputError) as info:
+        task_from_dict(task)
+    assert field in [p.field for p in info.value.problems], info.value.problems
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"bounds": {"max_tilt": True}}, "scene.bounds.max_tilt"),
+        ({"bounds": {"alpha_low": "0.3"}}, "scene.bounds.alpha_low"),
+        ({"collision": {"obstacle_clearance": "0.5"}}, "scene.collision.obstacle_clearance"),
+        ({"ground": "yes"}, "scene.ground"),
+    ],
+)
+def test_an_inline_scene_s_numbers_are_numbers(change, field):
+    scene = {"start": [0, 0, 5, 0, 0, 0, 1, 1, 1], "goal": [1, 0, 5, 0, 0, 0, 1, 1, 1]}
+    scene["bounds"] = {"position_low": [-5, -5, 0], "position_high": [5, 5, 10]}
+    for key, value in change.items():
+        scene[key] = {**scene.get(key, {}), **value} if isinstance(value, dict) else value
+    with pytest.raises(InputError) as info:
+        task_from_dict({"scene": scene})
+    assert field in [p.field for p in info.value.problems], info.value.problems
+
+
+def test_integers_stand_for_floats():
+    task = task_from_dict({"planner": {"time_budget": 60, "improve_time": 0}})
+    assert task.planner.time_budget == 60.0
