@@ -29,6 +29,7 @@ from flycrane.model.statics import evaluate_statics
 from flycrane.model.statics_summary import statics_summary
 from flycrane.model.system_spec import SystemSpec, load_system, save_system
 from flycrane.quantities import MAX_TIME_BUDGET, Configuration
+from flycrane.user_files import output_directory
 from flycrane.world.scene import list_scenes, load_scene
 
 #: The configuration the quick start evaluates: hovering 5 m up, level, alphas at 1 rad.
@@ -120,7 +121,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     for scene in args.scenes:
         load_scene(scene)  # unknown names and bad files fail here, before any work starts
     base = PlannerOptions(step=args.step)
-    out = Path(args.out)
+    out = output_directory(Path(args.out))
     total = len(args.scenes) * len(args.planners) * args.runs
     records = []
     with executor_for(args.cluster, args.workers) as executor:

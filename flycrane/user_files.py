@@ -61,3 +61,20 @@ def read_text(path: Path, field: str = "file", limit: int = MAX_TEXT_BYTES) -> s
         return data.decode("utf-8")
     except UnicodeDecodeError as error:
         raise InputError([FieldProblem(field, f"not UTF-8 text (byte {error.start})")]) from None
+
+
+def output_directory(path: Path, field: str = "--out") -> Path:
+    """``path`` made a directory to write into (with its parents), or an error naming
+    ``field``: an existing file there, a parent that is a file, no permission.
+
+    Raises
+    ------
+    InputError
+        The directory cannot be made or is not one (field ``field``).
+    """
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        reason = "exists and is not a directory" if path.exists() else error.strerror or error
+        raise InputError([FieldProblem(field, f"{path}: {reason}")]) from None
+    return path

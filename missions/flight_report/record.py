@@ -85,5 +85,8 @@ class FlightRecord:
                 refused=tuple(data.get("refused", ())),
                 faults=tuple(data.get("faults", ())),
             )
-        except (OSError, ValueError, KeyError, TypeError) as error:
+        except KeyError as error:
+            reason = f"{path}: no field {error} (not a flight record of this version)"
+            raise InputError([FieldProblem("flight", reason)]) from None
+        except (OSError, ValueError, TypeError) as error:
             raise InputError([FieldProblem("flight", f"{path}: {error}")]) from None

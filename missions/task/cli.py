@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from flycrane.planning.result import PlanningProgress
+from flycrane.user_files import output_directory
 
 
 def _progress(stage: str, report: PlanningProgress | None) -> None:
@@ -40,13 +41,13 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         task, base_dir = TaskSpec(name="rescue (defaults)"), None
     clock = time.perf_counter()
     resolved = resolve_task(task, base_dir)
+    out = output_directory(Path(args.out))
     print(
         f"planning {task.name or 'task'}: scene {resolved.problem.scene.name}, "
         f"planner {resolved.algorithm}, seed {task.planner.seed}",
         file=sys.stderr,
     )
-    outcome = run_task(task, args.out, progress=_progress, base_dir=base_dir, resolved=resolved)
-    out = Path(args.out)
+    outcome = run_task(task, out, progress=_progress, base_dir=base_dir, resolved=resolved)
     print(f"status: {outcome.status}" + (f" ({outcome.reason})" if outcome.reason else ""))
     for attempt in outcome.attempts:
         seed, reason = attempt["seed"], attempt["reason"]

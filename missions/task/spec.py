@@ -56,6 +56,9 @@ class TaskSpec(BaseModel):
 
 def task_from_dict(data: dict, source: str | None = None) -> TaskSpec:
     """Validate a mapping as a task, raising :class:`InputError` naming the field."""
+    if not isinstance(data, dict):
+        kind = type(data).__name__
+        raise InputError([FieldProblem("task", f"must be an object of fields, got {kind}")], source)
     try:
         return TaskSpec.model_validate(data)
     except ValidationError as error:

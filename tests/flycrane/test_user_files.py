@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from flycrane.errors import InputError
-from flycrane.user_files import read_text, regular_file
+from flycrane.user_files import output_directory, read_text, regular_file
 
 
 def test_text_of_a_regular_file(tmp_path: Path):
@@ -52,3 +52,17 @@ def _fifo(directory: Path) -> Path:
     path = directory / "pipe.toml"
     os.mkfifo(path)
     return path
+
+
+def test_an_output_directory_is_made_or_refused_naming_the_option(tmp_path: Path):
+    assert output_directory(tmp_path / "a" / "b").is_dir()
+    (tmp_path / "file").write_text("mine", encoding="utf-8")
+    for path, reason in (
+        (tmp_path / "file", "exists and is not a directory"),
+        (tmp_path / "file" / "sub", "Not a directory"),
+    ):
+        with pytest.raises(InputError) as info:
+            output_directory(path)
+        (problem,) = info.value.problems
+        assert problem.field == "--out" and reason in problem.reason
+    assert (tmp_path / "file").read_text(encoding="utf-8") == "mine"

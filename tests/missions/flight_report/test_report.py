@@ -23,6 +23,7 @@ from mcap.reader import make_reader
 from pymavlink.dialects.v20 import ardupilotmega
 
 from flycrane.cli import main
+from flycrane.errors import InputError
 from flycrane.planning.planners import PlannerOptions
 from missions.execution.record import ExecutionRecord
 from missions.flight_report.record import EXECUTION_FILE, FlightRecord, VehicleRecord
@@ -143,3 +144,10 @@ def test_a_clocked_flight_whose_logs_end_before_its_start_is_named_not_a_traceba
     assert main(["flight-report", str(tmp_path)]) == 2
     # drone 3's log ends first, at 5.6 s of its boot and of the UNIX time from unix0
     assert "drone3: its log ends 4.40 s before the plan's start" in capsys.readouterr().err
+
+
+def test_a_flight_record_missing_a_field_says_which(tmp_path):
+    """The reason was a KeyError's bare text, 'task_dir'."""
+    (tmp_path / "flight.json").write_text("{}", encoding="utf-8")
+    with pytest.raises(InputError, match="no field 'task_dir'"):
+        FlightRecord.read(tmp_path)

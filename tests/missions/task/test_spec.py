@@ -7,6 +7,7 @@ from __future__ import annotations
 import pytest
 
 from flycrane.errors import InputError
+from missions.task.resolve import resolve_task
 from missions.task.spec import task_from_dict
 
 
@@ -54,3 +55,26 @@ def test_an_inline_scene_s_numbers_are_numbers(change, field):
 def test_integers_stand_for_floats():
     task = task_from_dict({"planner": {"time_budget": 60, "improve_time": 0}})
     assert task.planner.time_budget == 60.0
+
+
+@pytest.mark.parametrize("document", [[], 5, "rescue"])
+def test_a_task_that_is_not_an_object_says_so(document):
+    with pytest.raises(InputError) as info:
+        task_from_dict(document)
+    assert [p.field for p in info.value.problems] == ["task"]
+
+
+@pytest.mark.parametrize(
+    ("task", "field"),
+    [
+        ({"goal": [0, 0, 8.45, 0, -1, 0, 1, 1, 1]}, "goal.theta"),
+        ({"start": {"position": [0, 0, 0.45], "orientation": [0, -1, 1.57]}},
+         "start.orientation.theta"),
+    ],
+)  # fmt: skip
+def test_a_tilt_outside_the_chart_is_named_by_the_end_given(task, field):
+    """It was named q.theta (a configuration), or q[0].theta ... q[4].theta (the pose's
+    candidates)."""
+    with pytest.raises(InputError) as info:
+        resolve_task(task_from_dict(task))
+    assert [p.field for p in info.value.problems] == [field]
