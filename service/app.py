@@ -25,11 +25,11 @@ from starlette.middleware.trustedhost import TrustedHostMiddleware
 from flycrane.execution import executor_for
 from service.api.routes import docs, health, presets, statics, tasks, view
 from service.deps import READ, ServiceState
-from service.errors import error_responses, install_error_handlers
+from service.errors import ErrorBody, error_responses, install_error_handlers
 from service.jobs import JobManager
 from service.lifecycle import RETENTION_INTERVAL, purge_expired
 from service.metrics import ServiceMetrics
-from service.middleware import BodySizeLimit, SecurityHeaders
+from service.middleware import BodySizeLimit, JsonBodiesOnly, SecurityHeaders
 from service.settings import Settings, get_settings
 from service.startup import open_storage
 from service.storage import TaskStore
@@ -113,7 +113,13 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
         "T-RRT over cable statics) and exports synchronized MAVLink missions, MCAP logs and "
         "plots.",
         lifespan=lifespan,
-        responses=error_responses(400),
+        responses={
+            **error_responses(400),
+            415: {
+                "model": ErrorBody,
+                "description": "a POST without Content-Type: application/json",
+            },
+        },
         # Our own /docs (vendored Swagger UI, no CDN); no /redoc, which loads from one.
         openapi_url="/openapi.json" if settings.api_docs else None,
         docs_url=None,
@@ -132,6 +138,7 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
     app.include_router(view.static_router)
     if settings.api_docs:
         app.include_router(docs.router)
+    app.add_middleware(JsonBodiesOnly)
     app.add_middleware(BodySizeLimit, limit=settings.max_request_bytes)
     # A request for another host name is refused before anything else runs ...
     app.add_middleware(TrustedHostMiddleware, allowed_hosts=settings.host_patterns)

@@ -1,7 +1,10 @@
-"""ASGI middleware of the service: the request-body limit (413) enforced on the bytes, and
-the security headers of every response (:mod:`service.security`)."""
+"""ASGI middleware of the service: the request-body limit (413) enforced on the bytes, JSON
+request bodies only (415), and the security headers of every response
+(:mod:`service.security`)."""
 
 from __future__ import annotations
+
+import json
 
 from starlette.datastructures import MutableHeaders
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
@@ -87,3 +90,46 @@ class BodySizeLimit:
             }
         )
         await send({"type": "http.response.body", "body": body})
+
+
+def _content_type_refusal(headers: list[tuple[bytes, bytes]]) -> str | None:
+    """Why a request's Content-Type headers are not ``application/json``, or None."""
+    types = [value.decode("latin-1") for name, value in headers if name == b"content-type"]
+    if not types:
+        return "header Content-Type is missing"
+    for value in types:
+        if value.split(";", 1)[0].strip().lower() != "application/json":
+            return f"header Content-Type is {value[:100]!r}"
+    return None
+
+
+class JsonBodiesOnly:
+    """Refuse POST, PUT and PATCH requests whose Content-Type is not ``application/json``
+    (parameters such as ``; charset=utf-8`` allowed) with 415.
+
+    A page on another site can make a browser POST text/plain, form-encoded or multipart
+    bodies, or none, here without asking first (a CORS "simple request"); a JSON body needs
+    the preflight, which this server never grants.
+    """
+
+    METHODS = frozenset({"POST", "PUT", "PATCH"})
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "http" and scope["method"] in self.METHODS:
+            reason = _content_type_refusal(scope["headers"])
+            if reason is not None:
+                detail = f"{reason}: this API takes JSON bodies, Content-Type: application/json"
+                await send(
+                    {
+                        "type": "http.response.start",
+                        "status": 415,
+                        "headers": [(b"content-type", b"application/json")],
+                    }
+                )
+                body = json.dumps({"detail": detail}).encode()
+                await send({"type": "http.response.body", "body": body})
+                return
+        await self.app(scope, receive, send)

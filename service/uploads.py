@@ -126,10 +126,12 @@ def _connect(
     drone: int, address: str, policy: RetryPolicy, ends: float
 ) -> VehicleLink | VehicleUpload:
     """A link to the vehicle at ``address`` once its heartbeat came, or why not."""
+    name = f"drone {drone} ({address})"
     try:
-        link = VehicleLink(address, policy, name=f"drone {drone} ({address})")
-    except (MavlinkError, OSError) as error:
-        return _failed(drone, address, error)
+        link = VehicleLink(address, policy, name=name)
+    except (MavlinkError, OSError) as error:  # no such device, port in use, ...
+        detail = f"{name}: cannot open the link: {type(error).__name__}: {error}"
+        return VehicleUpload(drone=drone, vehicle=address, ok=False, detail=detail)
     try:
         link.wait_heartbeat(min(policy.heartbeat_timeout_s, max(ends - time.monotonic(), 0.0)))
     except MavlinkError as error:

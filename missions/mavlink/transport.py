@@ -81,7 +81,8 @@ def parse_connection(address: str) -> ConnectionSpec:
     Raises
     ------
     ConnectionStringError
-        For anything else, or a port outside 1..65535 (0 for a listener).
+        For anything else, or a port outside 1..65535 (0 too for a listener: the system
+        would pick a port nobody knows).
     """
     text = address.strip()
     network = _NETWORK.match(text)
@@ -89,8 +90,7 @@ def parse_connection(address: str) -> ConnectionSpec:
         kind = network.group(1)
         kind = "udpin" if kind == "udp" else kind
         port = int(network.group("port"))
-        listener = kind in ("udpin", "tcpin")
-        if not (0 if listener else 1) <= port <= 65535:
+        if not 1 <= port <= 65535:
             raise ConnectionStringError(address, f"port {port} outside 1..65535")
         return ConnectionSpec(kind=kind, host=network.group("host"), port=port)
     serial = _SERIAL.match(text)
@@ -112,17 +112,23 @@ def open_mavlink(address: str, source: Endpoint) -> Any:
     ConnectionStringError
         If ``address`` does not parse.
     OSError
-        If the socket or device cannot be opened (port in use, no such device, refused).
+        If the socket or device cannot be opened (port in use, no such device, refused, a
+        baud rate the device cannot take).
     """
     spec = parse_connection(address)
-    conn = mavutil.mavlink_connection(
-        spec.mavutil_device(),
-        baud=spec.baud,
-        source_system=source.system,
-        source_component=source.component,
-        autoreconnect=False,
-        retries=1,
-    )
+    try:
+        conn = mavutil.mavlink_connection(
+            spec.mavutil_device(),
+            baud=spec.baud,
+            source_system=source.system,
+            source_component=source.component,
+            autoreconnect=False,
+            retries=1,
+        )
+    except (ValueError, OverflowError) as error:  # pyserial refusing the baud rate
+        if spec.kind != "serial":
+            raise
+        raise OSError(f"{spec.device} cannot run at {spec.baud} baud ({error})") from error
     conn.mav = dialect.MAVLink(conn, srcSystem=source.system, srcComponent=source.component)
     conn.mav.robust_parsing = True
     conn.WIRE_PROTOCOL_VERSION = "2.0"
