@@ -34,6 +34,7 @@ def as_configurations(q: ArrayLike, name: str = "q") -> NDArray[np.float64]:
         raise ConfigurationError(
             [FieldProblem(name, f"not an array of numbers: {error}")]
         ) from None
+    batch = array.ndim == 2  # a list of configurations: its rows are named by index
     if array.ndim == 1:
         array = array[None, :]
     if array.ndim != 2 or array.shape[1] != 9:
@@ -43,19 +44,19 @@ def as_configurations(q: ArrayLike, name: str = "q") -> NDArray[np.float64]:
     problems = []
     bad_rows, bad_cols = np.nonzero(~np.isfinite(array))
     for row, col in zip(bad_rows[:5], bad_cols[:5], strict=True):
-        problems.append(FieldProblem(_field(name, array, row, col), "must be finite"))
+        problems.append(FieldProblem(_field(name, batch, row, col), "must be finite"))
     theta = array[:, 4]
     for row in np.flatnonzero((theta < 0.0) | (theta > np.pi))[:5]:
         problems.append(
-            FieldProblem(_field(name, array, row, 4), f"tilt {theta[row]:.6g} rad not in [0, pi]")
+            FieldProblem(_field(name, batch, row, 4), f"tilt {theta[row]:.6g} rad not in [0, pi]")
         )
     if problems:
         raise ConfigurationError(problems)
     return array
 
 
-def _field(name: str, array: np.ndarray, row: int, col: int) -> str:
-    prefix = f"{name}[{row}]" if array.shape[0] > 1 else name
+def _field(name: str, batch: bool, row: int, col: int) -> str:
+    prefix = f"{name}[{row}]" if batch else name
     return f"{prefix}.{COORDINATES[col]}"
 
 

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import ValidationError
 
-from flycrane.errors import FieldProblem, InputError
+from flycrane.errors import FieldProblem, InputError, SystemSpecError
 from flycrane.model.kinematics import as_configurations
 from flycrane.model.robust_statics import RobustStatics
 from flycrane.model.system_spec import SystemSpec, problems_from_validation_error, system_preset
@@ -162,7 +162,12 @@ def resolve_task(
                 [FieldProblem("mission.position_error", p.reason)
                  for p in problems_from_validation_error(error)]
             ) from None  # fmt: skip
-    problem = PlanningProblem.from_scene(scene, system, scene_dir)
+    try:
+        problem = PlanningProblem.from_scene(scene, system, scene_dir)
+    except SystemSpecError as error:  # the model's own checks name the system's fields
+        raise InputError(
+            [FieldProblem(f"system.{p.field}", p.reason) for p in error.problems]
+        ) from None
     try:
         algorithm = task.planner.algorithm_for(problem.validity.payload_meshes)
     except PayloadMeshes:

@@ -88,6 +88,20 @@ def test_statics_what_if(client):
     assert bad.status_code == 422 and bad.json()["detail"][0]["loc"][:2] == ["body", "q"]
 
 
+def test_statics_errors_name_the_field_as_posted(client):
+    """The first of a batch was named q.theta, and a system the model refuses by the
+    system's own field, geometry."""
+    tilted = [0, 0, 5, 0, -1, 0, 1, 1, 1]
+    for q, named in (([tilted], ["q[0].theta"]), ([tilted, tilted], ["q[0].theta", "q[1].theta"])):
+        response = client.post("/v1/statics", json={"q": q})
+        assert response.status_code == 422
+        assert [".".join(map(str, d["loc"][1:])) for d in response.json()["detail"]] == named
+    flat = {"geometry": {"kind": "octahedral", "side": 1e-9}}
+    response = client.post("/v1/statics", json={"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1]], "system": flat})
+    assert response.status_code == 422, response.text
+    assert response.json()["detail"][0]["loc"][1:] == ["system", "geometry"]
+
+
 def test_presets_health_and_metrics(client):
     assert "benchmark" in client.get("/v1/presets/systems").json()
     scenes = client.get("/v1/presets/scenes").json()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
+from flycrane.errors import FieldProblem, InputError, SystemSpecError
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.statics import evaluate_statics
 from flycrane.model.statics_summary import statics_summary
@@ -19,7 +20,12 @@ router = APIRouter(prefix="/v1/statics", tags=["statics"])
 def statics(body: StaticsCreate) -> dict:
     """Tensions, tension ranges, thrusts, margins, cost and violated constraints of each q."""
     spec = system_preset(body.system) if isinstance(body.system, str) else body.system
-    system = CableSystem.from_spec(spec)
+    try:
+        system = CableSystem.from_spec(spec)
+    except SystemSpecError as error:  # the model's own checks name the system's fields
+        raise InputError(
+            [FieldProblem(f"system.{p.field}", p.reason) for p in error.problems]
+        ) from None
     report = evaluate_statics(system, body.q)
     return {
         "results": [

@@ -144,6 +144,7 @@ def test_direct_kinematics_reports_unreachable_drone_positions(system):
         ([0, 0, np.nan, 0, 0, 0, 1, 1, 1], "q.z"),
         ([0, 0, 5, 0, -0.1, 0, 1, 1, 1], "q.theta"),
         ([[0, 0, 5, 0, 0, 0, 1, 1, 1], [0, 0, 5, 0, 0, np.inf, 1, 1, 1]], "q[1].sigma"),
+        ([[0, 0, 5, 0, -0.1, 0, 1, 1, 1]], "q[0].theta"),  # a list of one is still a list
         ("abc", "q"),
     ],
 )

@@ -57,8 +57,10 @@ def test_connection_strings(address, spec, device):
 
 
 @pytest.mark.parametrize(
-    "address", ["", "udpin:14550", "udpout:host:0", "udpout:host:70000", "http://x:80", "COM"]
-)
+    "address",
+    ["", "udpin:14550", "udpout:host:0", "udpout:host:70000", "http://x:80", "COM",
+     "/dev/ttyUSB0,0", f"/dev/ttyUSB0,{10**20}"],
+)  # fmt: skip
 def test_bad_connection_strings_name_the_address(address):
     with pytest.raises(ConnectionStringError) as error:
         parse_connection(address)

@@ -70,11 +70,13 @@ def test_a_task_that_is_not_an_object_says_so(document):
         ({"goal": [0, 0, 8.45, 0, -1, 0, 1, 1, 1]}, "goal.theta"),
         ({"start": {"position": [0, 0, 0.45], "orientation": [0, -1, 1.57]}},
          "start.orientation.theta"),
+        # refused by the model (a drone's edge through the centroid), not by the schema
+        ({"system": {"geometry": {"kind": "octahedral", "side": 1e-9}}}, "system.geometry"),
     ],
 )  # fmt: skip
-def test_a_tilt_outside_the_chart_is_named_by_the_end_given(task, field):
-    """It was named q.theta (a configuration), or q[0].theta ... q[4].theta (the pose's
-    candidates)."""
+def test_errors_of_resolving_name_the_task_s_field(task, field):
+    """They were named q.theta (a configuration), q[0].theta ... q[4].theta (the pose's
+    candidates), and geometry (the system's own field)."""
     with pytest.raises(InputError) as info:
         resolve_task(task_from_dict(task))
     assert [p.field for p in info.value.problems] == [field]
