@@ -47,8 +47,13 @@ PerturbationRadius = Annotated[
 ]
 Point = tuple[Coordinate, Coordinate, Coordinate]
 Orientation = tuple[Angle, Angle, Angle]
+#: The platform's tilt theta [rad]: the tilt-and-torsion chart's range (design.md s.3; a
+#: negative tilt is phi + pi).
+Tilt = Annotated[float, Field(ge=0.0, le=math.pi, allow_inf_nan=False, strict=True)]
+#: The platform's orientation (phi, theta, sigma) [rad] in that chart.
+PlatformOrientation = tuple[Angle, Tilt, Angle]
 #: A configuration q (design.md s.3): position [m] and six angles [rad], all bounded.
-Configuration = tuple[Coordinate, Coordinate, Coordinate, Angle, Angle, Angle, Angle, Angle, Angle]
+Configuration = tuple[Coordinate, Coordinate, Coordinate, Angle, Tilt, Angle, Angle, Angle, Angle]
 #: Longest planning time a run may be given [s]: a day.
 MAX_TIME_BUDGET = 86_400.0
 #: Seeds of the random number generators: OMPL's seed is a uint_fast32_t (at least 32

@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from flycrane.model.kinematics import as_configurations
 from flycrane.planning.state_space import ConfigurationSpace
 from flycrane.planning.validity import InvalidConfigurationError, ValidityChecker
 
@@ -35,9 +34,6 @@ def configuration_from_pose(
         If no alpha triple of the grid gives a valid configuration; the reasons are those of
         the least-cost candidate.
     """
-    # the orientation's tilt in the chart, named as given (not as each candidate's)
-    angles = np.asarray(orientation, float)
-    as_configurations(np.concatenate([np.zeros(3), angles, np.ones(3)]), f"{what}.orientation")
     alphas = np.linspace(space.alpha_low, space.alpha_high, ALPHA_GRID)
     grid = np.stack(np.meshgrid(alphas, alphas, alphas, indexing="ij"), axis=-1).reshape(-1, 3)
     pose = np.concatenate([np.asarray(position, float), np.asarray(orientation, float)])

@@ -18,7 +18,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from flycrane.errors import FieldProblem, InputError
 from flycrane.model.kinematics import matrix_from_tilt_torsion
@@ -252,13 +252,6 @@ class SceneSpec(BaseModel):
         }
         return tuple(o.model_copy(update=grow[o.kind](o)) for o in self.obstacles)
 
-    @field_validator("start", "goal")
-    @classmethod
-    def _tilt_in_range(cls, value: Configuration) -> Configuration:
-        if not 0.0 <= value[4] <= math.pi:
-            raise ValueError(f"tilt theta = {value[4]} not in [0, pi]")
-        return value
-
     def system_spec(self, base: SystemSpec | None = None) -> SystemSpec:
         """The system carrying this scene's payload (its mass and centre of mass, if set)."""
         base = base or SystemSpec()
@@ -298,9 +291,9 @@ def load_scene(name_or_path: str | Path) -> tuple[SceneSpec, Path]:
     """Load a scene by name or path; returns it with the directory its mesh files live in."""
     path = scene_path(name_or_path)
     try:
-        data = tomllib.loads(read_text(path))
-    except InputError as error:
+        scene = scene_from_dict(tomllib.loads(read_text(path)), str(path))
+    except InputError as error:  # the file unreadable, or a field of the scene
         raise SceneError(error.problems, str(path)) from None
     except tomllib.TOMLDecodeError as error:
         raise SceneError([FieldProblem("file", str(error))], str(path)) from None
-    return scene_from_dict(data, str(path)), path.parent
+    return scene, path.parent

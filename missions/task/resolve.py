@@ -18,7 +18,6 @@ from numpy.typing import NDArray
 from pydantic import ValidationError
 
 from flycrane.errors import FieldProblem, InputError, SystemSpecError
-from flycrane.model.kinematics import as_configurations
 from flycrane.model.robust_statics import RobustStatics
 from flycrane.model.system_spec import SystemSpec, problems_from_validation_error, system_preset
 from flycrane.planning.algorithms.bitrrt import MESH_REASON, PayloadMeshes
@@ -181,7 +180,7 @@ def resolve_task(
                 problem.space, checkers.real, given.position, given.orientation, what
             )
         else:
-            q = as_configurations(default if given is None else given, what)[0]
+            q = np.array(default if given is None else given, dtype=float)
         approach = task.mission.set_down_approach if what == "goal" else 0.0
         planned, leg = clear_end(q, checkers.planning, checkers.real, what, approach, hold)
         ends.append(planned)

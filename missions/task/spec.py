@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from flycrane.errors import FieldProblem, InputError
 from flycrane.model.system_spec import SystemSpec, problems_from_validation_error
 from flycrane.planning.planners import PlannerOptions
-from flycrane.quantities import Configuration, Orientation, Point
+from flycrane.quantities import Configuration, PlatformOrientation, Point
 from flycrane.user_files import read_text
 from flycrane.world.scene import Mesh, SceneSpec, list_scenes
 from missions.options import MissionOptions
@@ -28,7 +28,9 @@ class PlatformPose(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     position: Point = Field(description="P [m], world frame")
-    orientation: Orientation = Field((0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad]")
+    orientation: PlatformOrientation = Field(
+        (0.0, 0.0, 0.0), description="(phi, theta, sigma) [rad], theta in [0, pi]"
+    )
 
 
 class TaskSpec(BaseModel):

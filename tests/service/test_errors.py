@@ -89,13 +89,13 @@ def test_statics_what_if(client):
 
 
 def test_statics_errors_name_the_field_as_posted(client):
-    """The first of a batch was named q.theta, and a system the model refuses by the
-    system's own field, geometry."""
+    """The first of a batch was named q.theta (no index), and a system the model refuses
+    by the system's own field, geometry."""
     tilted = [0, 0, 5, 0, -1, 0, 1, 1, 1]
-    for q, named in (([tilted], ["q[0].theta"]), ([tilted, tilted], ["q[0].theta", "q[1].theta"])):
+    for q, named in (([tilted], [[0, 4]]), ([tilted, tilted], [[0, 4], [1, 4]])):
         response = client.post("/v1/statics", json={"q": q})
         assert response.status_code == 422
-        assert [".".join(map(str, d["loc"][1:])) for d in response.json()["detail"]] == named
+        assert [d["loc"][2:] for d in response.json()["detail"]] == named
     flat = {"geometry": {"kind": "octahedral", "side": 1e-9}}
     response = client.post("/v1/statics", json={"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1]], "system": flat})
     assert response.status_code == 422, response.text

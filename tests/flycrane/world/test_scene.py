@@ -43,7 +43,7 @@ def test_puzzle_payload_changes_the_system():
         ),
         ({"obstacles": [{"kind": "cone", "radius": 1}]}, "obstacles[0]", "kind"),
         ({"start": [0, 0, 5]}, "start", ""),
-        ({"goal": [0, 0, 5, 0, -1, 0, 1, 1, 1]}, "goal", "tilt"),
+        ({"goal": [0, 0, 5, 0, -1, 0, 1, 1, 1]}, "goal[4]", "greater than or equal to 0"),
         ({"bounds": {"position_low": [0, 0, 0], "position_high": [1, -1, 1]}}, "bounds", "y"),
         (
             {"obstacles": [{"kind": "mesh", "vertices": [[0, 0, 0]], "faces": [[0, 1, 2]]}]},
