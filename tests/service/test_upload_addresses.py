@@ -4,7 +4,6 @@ from pymavlink's serial link) and port 0 (a listener on a port nobody knows)."""
 from __future__ import annotations
 
 import os
-import time
 
 import pytest
 
@@ -67,11 +66,9 @@ def test_a_baud_rate_no_link_runs_at_is_422_naming_the_vehicle(tmp_path):
 def test_port_0_is_refused_in_every_form(tmp_path, address):
     with running_service(tmp_path) as client:
         task = fabricated(client)
-        started = time.monotonic()
         response = client.post(f"/v1/tasks/{task}/upload", json={"vehicles": [address, *OTHERS]})
-        elapsed = time.monotonic() - started
+    # refused as input (422), not a link opened and waited for (502 after its timeout)
     assert response.status_code == 422, response.text
     (problem,) = response.json()["detail"]
     assert problem["loc"] == ["body", "vehicles[0]"]
     assert problem["msg"] == f"{address!r}: port 0 outside 1..65535"
-    assert elapsed < 2.0, elapsed  # refused, not waited for
