@@ -35,6 +35,11 @@ class InputError(FlyCraneError, ValueError):
         where = f"{source}: " if source else ""
         super().__init__(where + "; ".join(str(p) for p in self.problems))
 
+    def under(self, prefix: str) -> InputError:
+        """The same problems named as fields of a document nested at ``prefix`` (a task's
+        ``system``): the model's own checks name the fields of what they check."""
+        return InputError([FieldProblem(f"{prefix}.{p.field}", p.reason) for p in self.problems])
+
 
 class SystemSpecError(InputError):
     """A FlyCrane system description (file or object) is invalid."""

@@ -163,10 +163,8 @@ def resolve_task(
             ) from None  # fmt: skip
     try:
         problem = PlanningProblem.from_scene(scene, system, scene_dir)
-    except SystemSpecError as error:  # the model's own checks name the system's fields
-        raise InputError(
-            [FieldProblem(f"system.{p.field}", p.reason) for p in error.problems]
-        ) from None
+    except SystemSpecError as error:
+        raise error.under("system") from None
     try:
         algorithm = task.planner.algorithm_for(problem.validity.payload_meshes)
     except PayloadMeshes:

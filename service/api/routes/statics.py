@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import APIRouter
 
-from flycrane.errors import FieldProblem, InputError, SystemSpecError
+from flycrane.errors import SystemSpecError
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.statics import evaluate_statics
 from flycrane.model.statics_summary import statics_summary
@@ -22,10 +22,8 @@ def statics(body: StaticsCreate) -> dict:
     spec = system_preset(body.system) if isinstance(body.system, str) else body.system
     try:
         system = CableSystem.from_spec(spec)
-    except SystemSpecError as error:  # the model's own checks name the system's fields
-        raise InputError(
-            [FieldProblem(f"system.{p.field}", p.reason) for p in error.problems]
-        ) from None
+    except SystemSpecError as error:
+        raise error.under("system") from None
     report = evaluate_statics(system, body.q)
     return {
         "results": [
