@@ -4,9 +4,8 @@ request bodies only (415), and the security headers of every response
 
 from __future__ import annotations
 
-import json
-
 from starlette.datastructures import MutableHeaders
+from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from service.security import CSP, HEADERS, NOTHING
@@ -54,7 +53,7 @@ class BodySizeLimit:
             return
         declared = dict(scope.get("headers", [])).get(b"content-length")
         if declared is not None and declared.isdigit() and int(declared) > self.limit:
-            await self._refuse(send)
+            await self._refuse(scope, receive, send)
             return
         seen, refused, started = 0, False, False
 
@@ -67,7 +66,7 @@ class BodySizeLimit:
             if seen > self.limit:
                 refused = True
                 if not started:
-                    await self._refuse(send)
+                    await self._refuse(scope, receive, send)
                 return {"type": "http.disconnect"}
             return message
 
@@ -80,16 +79,10 @@ class BodySizeLimit:
 
         await self.app(scope, counting, guarded)
 
-    async def _refuse(self, send: Send) -> None:
-        body = f'{{"detail": "request body larger than {self.limit} bytes"}}'.encode()
-        await send(
-            {
-                "type": "http.response.start",
-                "status": 413,
-                "headers": [(b"content-type", b"application/json"), (b"connection", b"close")],
-            }
-        )
-        await send({"type": "http.response.body", "body": body})
+    async def _refuse(self, scope: Scope, receive: Receive, send: Send) -> None:
+        detail = {"detail": f"request body larger than {self.limit} bytes"}
+        refusal = JSONResponse(detail, status_code=413, headers={"connection": "close"})
+        await refusal(scope, receive, send)
 
 
 def _content_type_refusal(headers: list[tuple[bytes, bytes]]) -> str | None:
@@ -122,14 +115,6 @@ class JsonBodiesOnly:
             reason = _content_type_refusal(scope["headers"])
             if reason is not None:
                 detail = f"{reason}: this API takes JSON bodies, Content-Type: application/json"
-                await send(
-                    {
-                        "type": "http.response.start",
-                        "status": 415,
-                        "headers": [(b"content-type", b"application/json")],
-                    }
-                )
-                body = json.dumps({"detail": detail}).encode()
-                await send({"type": "http.response.body", "body": body})
+                await JSONResponse({"detail": detail}, status_code=415)(scope, receive, send)
                 return
         await self.app(scope, receive, send)
