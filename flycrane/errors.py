@@ -40,6 +40,10 @@ class InputError(FlyCraneError, ValueError):
         ``system``): the model's own checks name the fields of what they check."""
         return InputError([FieldProblem(f"{prefix}.{p.field}", p.reason) for p in self.problems])
 
+    def about(self, what: object) -> InputError:
+        """The same problems, each reason said of ``what`` (the file a field names)."""
+        return InputError([FieldProblem(p.field, f"{what}: {p.reason}") for p in self.problems])
+
 
 class SystemSpecError(InputError):
     """A FlyCrane system description (file or object) is invalid."""

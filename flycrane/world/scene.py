@@ -119,8 +119,7 @@ class Mesh(_Shape):
             faces = np.asarray(mesh.faces, int)
             _check_extent(vertices)
         except InputError as error:
-            problems = [FieldProblem(p.field, f"{path}: {p.reason}") for p in error.problems]
-            raise SceneError(problems) from None
+            raise SceneError(error.about(path).problems) from None
         # IndexError: trimesh's OBJ reader on a face that names a vertex the file lacks
         except (OSError, ValueError, AttributeError, IndexError) as error:
             raise SceneError([FieldProblem("mesh.file", f"{path}: {error}")]) from None

@@ -142,9 +142,7 @@ def read_vehicle_log(
     try:
         regular_file(Path(path), name)
     except InputError as error:
-        raise InputError(
-            [FieldProblem(name, f"{path}: {p.reason}") for p in error.problems]
-        ) from None
+        raise error.about(path) from None
     try:
         log = mavutil.mavlink_connection(str(path), dialect="ardupilotmega", robust_parsing=True)
     except OSError as error:
