@@ -4,10 +4,13 @@ A user may give a start or goal as a platform pose only (position and tilt-and-t
 angles); the drones' alphas are then free. We take, among a grid of alpha triples over the
 scene's alpha range, the valid configuration of least cost: the grid's cost is one compiled
 batch (15^3 = 3375 configurations, a few milliseconds), and validity (collisions) is checked
-in increasing order of cost until one passes.
+in increasing order of cost until one passes (and, where the caller asks, passes its own
+test too: a pose on a surface must also rise clear of it within the plan's clearance).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -17,6 +20,8 @@ from flycrane.planning.validity import InvalidConfigurationError, ValidityChecke
 
 #: Alpha grid points per drone.
 ALPHA_GRID = 15
+#: Most valid candidates put to a caller's ``accept``, in increasing order of cost.
+MOST_ACCEPTS = 64
 
 
 def configuration_from_pose(
@@ -25,8 +30,12 @@ def configuration_from_pose(
     position: ArrayLike,
     orientation: ArrayLike,
     what: str = "pose",
+    accept: Callable[[NDArray[np.float64]], bool] | None = None,
 ) -> NDArray[np.float64]:
-    """The least-cost valid configuration (9,) with the given platform pose.
+    """The least-cost valid configuration (9,) with the given platform pose; with
+    ``accept``, the least-cost valid one it accepts among the first :data:`MOST_ACCEPTS`
+    valid ones (a caller's further test, such as a pose on a surface that must also rise
+    clear of it), else the least-cost valid one.
 
     Raises
     ------
@@ -41,9 +50,16 @@ def configuration_from_pose(
     cost = validity.cost(candidates)
     order = np.argsort(cost)
     finite = order[np.isfinite(cost[order])]
+    first, tried = None, 0
     for start in range(0, len(finite), 64):
         batch = candidates[finite[start : start + 64]]
-        valid = validity.is_valid(batch)
-        if valid.any():
-            return batch[int(np.argmax(valid))]
+        for q in batch[validity.is_valid(batch)]:
+            if accept is None or accept(q):
+                return q
+            first = q if first is None else first
+            tried += 1
+            if tried == MOST_ACCEPTS:
+                return first
+    if first is not None:
+        return first
     raise InvalidConfigurationError(what, validity.explain(candidates[order[0]]))

@@ -7,6 +7,7 @@ import sys
 import time
 from pathlib import Path
 
+from flycrane.errors import FieldProblem, InputError
 from flycrane.planning.result import PlanningProgress
 from flycrane.user_files import output_directory
 
@@ -28,6 +29,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         MCAP_FILE,
         PROFILE_FILE,
         SUMMARY_FILE,
+        TASK_FILE,
         mission_file,
         raised_clearance,
     )
@@ -41,7 +43,11 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         task, base_dir = TaskSpec(name="rescue (defaults)"), None
     clock = time.perf_counter()
     resolved = resolve_task(task, base_dir)
-    out = output_directory(Path(args.out))
+    out = output_directory(args.out)
+    if args.task and (out / TASK_FILE).resolve() == Path(args.task).resolve():
+        raise InputError([FieldProblem("--out", (
+            f"{out} holds the task being planned ({args.task}), which the run would replace "
+            "with its own task.json: plan into another directory"))])  # fmt: skip
     print(
         f"planning {task.name or 'task'}: scene {resolved.problem.scene.name}, "
         f"planner {resolved.algorithm}, seed {task.planner.seed}",

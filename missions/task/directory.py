@@ -19,11 +19,17 @@ drone{k}.waypoints     drone k's mission, QGC WPL 110; ``.plan`` QGroundControl;
 mission.mcap           the mission for Foxglove; profile.png the tensions and thrusts
 summary.json           :class:`TaskOutcome`: status, planner statistics, metrics, mission
 =====================  =====================================================================
+
+A run writes into ``.partial/`` inside the directory, and its summary, written last, moves
+the files in: an interrupted run leaves the last finished run whole, never one run's
+missions beside another's task.
 """
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -52,6 +58,10 @@ TASK_FILE = "task.json"
 PATH_FILE = "path.json"
 TRACKS_FILE = "tracks.json"
 SUMMARY_FILE = "summary.json"
+#: Where a run writes its files until its summary moves them in (module docstring).
+STAGING_DIR = ".partial"
+#: The summary's name until it is moved into place, the run's last step.
+STAGED_SUMMARY = ".summary.json"
 MCAP_FILE = "mission.mcap"
 PROFILE_FILE = "profile.png"
 DRONES = (1, 2, 3)
@@ -297,19 +307,26 @@ class TaskDirectory:
         self.path = Path(path)
         #: what has been written, name -> file (relative), in the order written
         self.artifacts: dict[str, str] = {}
+        self._staging: Path | None = None
 
     def create(self) -> TaskDirectory:
+        """Make the directory and an empty staging folder in it for a run to write into
+        (an interrupted run's is cleared)."""
         self.path.mkdir(parents=True, exist_ok=True)
+        self._staging = self.path / STAGING_DIR
+        shutil.rmtree(self._staging, ignore_errors=True)
+        self._staging.mkdir()
         return self
 
     def file(self, name: str) -> Path:
-        return self.path / name
+        """Where the file ``name`` is written: in the staging folder while a run writes."""
+        return (self._staging or self.path) / name
 
     # writing ---------------------------------------------------------------------------
 
     def write_text(self, name: str, text: str, artifact: str | None = None) -> None:
         """Write ``name`` and record it as the artifact ``artifact`` (default: its name)."""
-        (self.path / name).write_text(text, encoding="utf-8")
+        self.file(name).write_text(text, encoding="utf-8")
         self.record(name, artifact)
 
     def record(self, name: str, artifact: str | None = None) -> None:
@@ -327,17 +344,26 @@ class TaskDirectory:
         self.write_text(TRACKS_FILE, dumps(tracks.as_dict()))
 
     def write_summary(self, outcome: TaskOutcome) -> TaskOutcome:
-        """Write summary.json, the run's last file; the outcome returned lists it among the
-        artifacts. Files an earlier run wrote here and this one did not are removed first:
-        beside a failed run's summary, an earlier run's missions would be taken for its
-        own and could be flown. ``task.json`` stays (it may be the task this run read);
-        other files are not the task's and are left alone."""
-        written = set(self.artifacts.values())
-        for name in OWN_FILES:
-            if name not in written and name not in (TASK_FILE, SUMMARY_FILE):
-                (self.path / name).unlink(missing_ok=True)
-        (self.path / SUMMARY_FILE).write_text(dumps(outcome.as_dict()), encoding="utf-8")
+        """Write summary.json, the run's last file, and move the run's files in; the
+        outcome returned lists it among the artifacts. The earlier summary goes first (the
+        directory reads as not done while its files change), and so do the files an earlier
+        run wrote here and this one did not: beside a failed run's summary, an earlier
+        run's missions would be taken for its own and could be flown. Other files are not
+        the task's and are left alone."""
+        staging = self._staging or self.path
         self.record(SUMMARY_FILE)
+        (staging / STAGED_SUMMARY).write_text(dumps(outcome.as_dict()), encoding="utf-8")
+        (self.path / SUMMARY_FILE).unlink(missing_ok=True)
+        written = set(self.artifacts.values()) - {SUMMARY_FILE}
+        for name in OWN_FILES:
+            if name not in written:
+                (self.path / name).unlink(missing_ok=True)
+            elif staging != self.path:
+                os.replace(staging / name, self.path / name)
+        os.replace(staging / STAGED_SUMMARY, self.path / SUMMARY_FILE)
+        if staging != self.path:
+            staging.rmdir()
+            self._staging = None
         return TaskOutcome(**{**outcome.__dict__, "artifacts": dict(self.artifacts)})
 
     # reading ---------------------------------------------------------------------------

@@ -9,8 +9,9 @@ task's run needs more than once is resolved here once.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 from pathlib import Path
 
 import numpy as np
@@ -86,15 +87,19 @@ class ResolvedTask:
 
     def self_contained(self) -> TaskSpec:
         """The task with its system, scene, start, goal and planner written out, so that
-        the task's directory alone says what was planned."""
+        the task's directory alone says what was planned and plans it again: the start and
+        goal as given (a pose as its configuration), not raised above a surface, so that
+        the lift-off and set-down are planned again too."""
         task, problem = self.task, self.problem
+        start = self.start if self.lift_off is None else self.lift_off.low
+        goal = self.goal if self.set_down is None else self.set_down.low
         return task.model_copy(
             update={
                 "planner": task.planner.model_copy(update={"algorithm": self.algorithm}),
                 "system": problem.system.spec,
                 "scene": problem.scene,
-                "start": tuple(float(v) for v in self.start),
-                "goal": tuple(float(v) for v in self.goal),
+                "start": tuple(float(v) for v in start),
+                "goal": tuple(float(v) for v in goal),
             }
         )
 
@@ -173,14 +178,19 @@ def resolve_task(
     ends, legs, hold = [], [], hold_height(problem, model, clearance)
     ends_given = (("start", task.start, scene.start), ("goal", task.goal, scene.goal))
     for what, given, default in ends_given:
+        approach = task.mission.set_down_approach if what == "goal" else 0.0
+        raise_end = partial(
+            clear_end, validity=checkers.planning, real=checkers.real, what=what,
+            approach=approach, hold=hold,
+        )  # fmt: skip
         if isinstance(given, PlatformPose):
             q = configuration_from_pose(
-                problem.space, checkers.real, given.position, given.orientation, what
-            )
+                problem.space, checkers.real, given.position, given.orientation, what,
+                accept=partial(_raises_clear, raise_end),
+            )  # fmt: skip
         else:
             q = np.array(default if given is None else given, dtype=float)
-        approach = task.mission.set_down_approach if what == "goal" else 0.0
-        planned, leg = clear_end(q, checkers.planning, checkers.real, what, approach, hold)
+        planned, leg = raise_end(q)
         ends.append(planned)
         legs.append(leg)
     least = least_duration(problem.system, np.stack(ends), task.mission)
@@ -196,6 +206,15 @@ def resolve_task(
         task, problem, algorithm, checkers, ends[0], ends[1], model, lift_off=legs[0],
         set_down=legs[1],
     )  # fmt: skip
+
+
+def _raises_clear(raise_end: Callable[[NDArray[np.float64]], object], q: NDArray) -> bool:
+    """Whether the end ``q`` can be planned from (or to), raised clear where it needs."""
+    try:
+        raise_end(q)
+    except InvalidConfigurationError:
+        return False
+    return True
 
 
 def resolve_raised(

@@ -33,6 +33,7 @@ from missions.export.items import MavCmd
 from missions.options import MissionOptions
 from missions.position_error import PRESETS
 from missions.task.build import build
+from missions.task.directory import TaskDirectory
 from missions.task.pipeline import run_task
 from missions.task.resolve import resolve_task
 from missions.task.spec import TaskSpec
@@ -73,14 +74,70 @@ def test_a_run_that_ends_early_leaves_no_earlier_run_s_missions_beside_it(rescue
     for path in done.iterdir():
         (tmp_path / path.name).write_bytes(path.read_bytes())
     (tmp_path / "notes.txt").write_text("mine", encoding="utf-8")
-    task_before = (tmp_path / "task.json").read_bytes()
     outcome = run_task(TASK, tmp_path, should_stop=lambda: True)
     assert outcome.status == "cancelled"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "summary.json", "task.json"]
-    assert (tmp_path / "task.json").read_bytes() == task_before  # it may be the task read
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "summary.json"]
     assert json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))["status"] == (
         "cancelled"
     )
+
+
+def test_an_interrupted_run_leaves_the_last_finished_run_whole(rescue, tmp_path, monkeypatch):
+    """Interrupted while it writes (Ctrl-C in ``flycrane plan``), a run must not leave its
+    task beside the last run's missions: the flight tools read both. Then the next run
+    replaces the last one whole."""
+    _, done = rescue
+    for path in done.iterdir():
+        (tmp_path / path.name).write_bytes(path.read_bytes())
+    other = TaskSpec(name="other", scene="corridor", planner=PlannerOptions(seed=7))
+
+    def interrupted(*_: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("missions.task.pipeline.write_files", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_task(other, tmp_path)
+    for path in done.iterdir():
+        assert (tmp_path / path.name).read_bytes() == path.read_bytes(), path.name
+    monkeypatch.undo()
+    outcome = run_task(other, tmp_path)
+    assert outcome.status == "done", outcome.reason
+    assert TaskDirectory(tmp_path).task().name == "other"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in done.iterdir())
+
+
+def test_the_task_json_a_run_writes_plans_the_same_missions_again(rescue, tmp_path):
+    """``task.json`` says what was planned: planned again it gives the same missions, its
+    lift-off and set-down included (it used to hold the raised ends, and lost them)."""
+    outcome, done = rescue
+    again = run_task(TaskDirectory(done).task(), tmp_path)
+    assert again.status == "done", again.reason
+    assert again.mission.set_down is not None and outcome.mission.set_down is not None
+    for k in (1, 2, 3):
+        name = f"drone{k}.waypoints"
+        assert (tmp_path / name).read_bytes() == (done / name).read_bytes(), name
+
+
+def test_plan_refuses_to_write_over_the_task_file_it_reads(rescue, tmp_path, capsys):
+    _, done = rescue
+    for path in done.iterdir():
+        (tmp_path / path.name).write_bytes(path.read_bytes())
+    task = tmp_path / "task.json"
+    assert main(["plan", str(task), "--out", str(tmp_path)]) == 2
+    assert f"--out: {tmp_path} holds the task being planned" in capsys.readouterr().err
+    assert task.read_bytes() == (done / "task.json").read_bytes()
+
+
+def test_a_start_given_as_a_pose_takes_alphas_that_rise_clear_of_its_surface():
+    """The Rescue's start as a platform pose: the least-cost alphas of the pose leave the
+    drones a centimetre from the buildings, which the plan's clearance refuses once raised;
+    the alphas taken are the least-cost ones that rise clear."""
+    scene = load_scene("rescue")[0]
+    pose = {"position": list(scene.start[:3]), "orientation": list(scene.start[3:6])}
+    resolved = resolve_task(TaskSpec(start=pose))
+    assert resolved.lift_off is not None
+    np.testing.assert_allclose(resolved.lift_off.low[:6], scene.start[:6])
+    assert resolved.checkers.planning.is_valid(resolved.start)[0]
 
 
 def test_tracks_store_the_modelled_motions_at_the_rate_readers_need(rescue):
