@@ -16,7 +16,9 @@ configuration therefore costs a few vectorized operations and no fcl call at all
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,6 +55,8 @@ from flycrane.world.scene import SceneSpec
 #: fcl's nearest points of a pair are trusted for its gap's gradient when they lie this
 #: close to the pair's distance apart [m]; else central differences.
 NEAREST_TOLERANCE = 1e-6
+#: Most robot-body-and-obstacle pairs whose bounds are computed at once (a chunk of rows).
+PAIR_BOUNDS_SIZE = 1_000_000
 #: Step of :meth:`CollisionChecker.gap_gradients`' central differences (m, rad), and its
 #: twelve twists: each axis of translation and rotation, both ways.
 TWIST_STEP = 1e-4
@@ -344,7 +348,7 @@ class CollisionChecker:
         """
         pose = self._pose(as_configurations(q)[:1])
         boxes = self._robot_boxes(pose)
-        return self._closest(pose, boxes, 0, self._pair_bounds(boxes))[0]
+        return self._closest(pose, boxes, 0, next(self._bounds_by_row(boxes)))[0]
 
     def gap_gradients(self, q: ArrayLike) -> tuple[NDArray, NDArray]:
         """The clearances of configurations (N, 9) (:meth:`clearance`), and each one's
@@ -358,10 +362,9 @@ class CollisionChecker:
         q = as_configurations(q)
         pose = self._pose(q)
         boxes = self._robot_boxes(pose)
-        bounds = self._pair_bounds(boxes)
         request = fcl.DistanceRequest(enable_signed_distance=True)
         gaps, gradients = np.empty(len(q)), np.zeros((len(q), 6))
-        for n in range(len(q)):
+        for n, bounds in enumerate(self._bounds_by_row(boxes)):
             best, (kind, index, o), result = self._closest(pose, boxes, n, bounds)
             gaps[n] = best.distance
             if not best.distance > 0.0 or not np.isfinite(best.distance):
@@ -403,16 +406,29 @@ class CollisionChecker:
         )
         return np.asarray(corners[np.argmin(corners[:, 2])])
 
-    def _pair_bounds(
+    def _bounds_by_row(
         self, boxes: tuple[NDArray, NDArray, list[tuple[str, int]]]
-    ) -> tuple[NDArray, NDArray] | None:
-        """Lower bounds of each robot body's distance to each obstacle, from their world
-        boxes (-inf where the boxes overlap: the bodies may be in contact), (N, B, O), and
-        each row's pairs in their order (N, B * O): none farther than the closest found can
-        be closer. None without obstacles."""
+    ) -> Iterator[tuple[NDArray, NDArray] | None]:
+        """:meth:`_pair_bounds` of each row of ``boxes`` in turn (None without obstacles),
+        computed for a few rows at a time: their arrays hold rows x bodies x obstacles
+        numbers, which for a long path among thousands of obstacles would take gigabytes
+        at once; a chunk keeps to :data:`PAIR_BOUNDS_SIZE` of them."""
+        rows, bodies = boxes[0].shape[:2]
         if not self.obstacles:
-            return None
-        centers, halves, _ = boxes
+            yield from itertools.repeat(None, rows)
+            return
+        chunk = max(1, PAIR_BOUNDS_SIZE // (bodies * len(self.obstacles)))
+        for start in range(0, rows, chunk):
+            yield from zip(*self._pair_bounds(boxes, slice(start, start + chunk)), strict=True)
+
+    def _pair_bounds(
+        self, boxes: tuple[NDArray, NDArray, list[tuple[str, int]]], rows: slice
+    ) -> tuple[NDArray, NDArray]:
+        """Lower bounds of each robot body's distance to each obstacle, from their world
+        boxes (-inf where the boxes overlap: the bodies may be in contact), (R, B, O) for
+        the ``rows`` of ``boxes``, and each row's pairs in their order (R, B * O): none
+        farther than the closest found can be closer."""
+        centers, halves = boxes[0][rows], boxes[1][rows]
         obstacle_c, obstacle_h = self._obstacle_aabb
         apart = np.abs(centers[:, :, None] - obstacle_c) - halves[:, :, None] - obstacle_h
         lower = np.linalg.norm(np.maximum(apart, 0.0), axis=-1) - self._margins
@@ -428,7 +444,7 @@ class CollisionChecker:
         bounds: tuple[NDArray, NDArray] | None,
     ) -> tuple[Clearance, tuple[str, int, int], fcl.DistanceResult | None]:
         """:meth:`closest` of a pose's row (``boxes``: its :meth:`_robot_boxes`; ``bounds``:
-        their :meth:`_pair_bounds`, None without obstacles), its pair (the robot body's
+        the row's :meth:`_pair_bounds`, None without obstacles), its pair (the robot body's
         (kind, index) and the obstacle's index, -1 for the ground) and fcl's result of an
         obstacle's pair (its nearest points)."""
         request = fcl.DistanceRequest(enable_signed_distance=True)
@@ -444,7 +460,7 @@ class CollisionChecker:
         found = None
         if bounds is None:
             return best, pair, found
-        lower, order = bounds[0][row], bounds[1][row]
+        lower, order = bounds
         first = len(kinds) * len(self.obstacles)  # of equally close pairs, the first listed
         for flat in order:
             b, o = divmod(int(flat), len(self.obstacles))

@@ -10,6 +10,7 @@ allowed in scenes sent over HTTP) or inline vertices and faces.
 
 from __future__ import annotations
 
+import json
 import math
 import tomllib
 from collections.abc import Iterable
@@ -205,6 +206,11 @@ class CollisionSettings(BaseModel):
     )
 
 
+#: Most obstacles a scene holds: each is a collision object of its own (memory and time
+#: per check grow with their number), where a mesh holds any number of faces.
+MAX_OBSTACLES = 10_000
+
+
 class SceneSpec(BaseModel):
     """A complete planning scene."""
 
@@ -212,7 +218,11 @@ class SceneSpec(BaseModel):
 
     name: str = Field("scene", max_length=200)
     description: str = Field("", max_length=10_000)
-    obstacles: tuple[Shape, ...] = ()
+    obstacles: tuple[Shape, ...] = Field(
+        (),
+        max_length=MAX_OBSTACLES,
+        description=f"at most {MAX_OBSTACLES}: a site of more parts is given as meshes",
+    )
     ground: bool = Field(True, description="the plane z = 0 is an obstacle", strict=True)
     payload: Payload = Field(default_factory=Payload)
     bounds: Bounds
@@ -287,12 +297,17 @@ def scene_path(name_or_path: str | Path) -> Path:
 
 
 def load_scene(name_or_path: str | Path) -> tuple[SceneSpec, Path]:
-    """Load a scene by name or path; returns it with the directory its mesh files live in."""
+    """Load a scene by name or path (a ``.json`` file as JSON, as the service's scene
+    presets give it, any other as TOML); returns it with the directory its mesh files
+    live in."""
     path = scene_path(name_or_path)
+    json_file = path.suffix.lower() == ".json"
     try:
-        scene = scene_from_dict(tomllib.loads(read_text(path)), str(path))
+        text = read_text(path)
+        scene = scene_from_dict(json.loads(text) if json_file else tomllib.loads(text), str(path))
     except InputError as error:  # the file unreadable, or a field of the scene
         raise SceneError(error.problems, str(path)) from None
-    except tomllib.TOMLDecodeError as error:
-        raise SceneError([FieldProblem("file", str(error))], str(path)) from None
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as error:
+        form = "JSON" if json_file else "TOML (a scene file is .toml, or .json)"
+        raise SceneError([FieldProblem("file", f"not valid {form}: {error}")], str(path)) from None
     return scene, path.parent

@@ -248,3 +248,20 @@ def test_the_closest_pair_is_the_least_over_every_pair(name):
         np.testing.assert_allclose(gradient, numeric, atol=2e-3)
         compared += 1
     assert compared >= 20
+
+
+def test_the_gaps_of_many_configurations_are_bounded_a_few_rows_at_a_time(monkeypatch):
+    """:meth:`gap_gradients` bounds its pairs a chunk of rows at a time (those arrays hold
+    rows x bodies x obstacles numbers: gigabytes at once for a path among thousands of
+    obstacles); in chunks of 7 rows each gap is still its row's own clearance, and the
+    gradients those of one chunk."""
+    checker = PlanningProblem.named("puzzle").validity.collision
+    q = PlanningProblem.named("puzzle").space.sample_uniform(np.random.default_rng(5), 30)
+    whole = checker.gap_gradients(q)
+    bodies = len(checker._robot_boxes(checker._pose(q[:1]))[2])
+    chunk = 7 * bodies * len(checker.obstacles)
+    monkeypatch.setattr("flycrane.world.collision.PAIR_BOUNDS_SIZE", chunk)
+    gaps, gradients = checker.gap_gradients(q)
+    np.testing.assert_array_equal(gaps, [checker.clearance(row) for row in q])
+    np.testing.assert_array_equal(gaps, whole[0])
+    np.testing.assert_array_equal(gradients, whole[1])

@@ -3,13 +3,20 @@
 from __future__ import annotations
 
 import itertools
+import json
 
 import numpy as np
 import pytest
 
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import InvalidConfigurationError
-from flycrane.world.scene import SceneError, list_scenes, load_scene, scene_from_dict
+from flycrane.world.scene import (
+    MAX_OBSTACLES,
+    SceneError,
+    list_scenes,
+    load_scene,
+    scene_from_dict,
+)
 
 HOVER = [0.0, 0.0, 5.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
 BOUNDS = {"position_low": [-20, -20, 0], "position_high": [20, 20, 20]}
@@ -25,6 +32,25 @@ def test_shipped_scenes_load_by_name_and_by_path():
     scene, base = load_scene("rescue")
     again, _ = load_scene(base / "rescue.toml")
     assert scene == again and scene.payload.shapes[0].name == "footbridge"
+
+
+def test_a_scene_file_in_json_loads_as_its_toml_does(tmp_path):
+    """The service's scene presets are JSON: saved to a file, a user's task names it."""
+    scene, _ = load_scene("rescue")
+    path = tmp_path / "rescue_copy.json"
+    path.write_text(json.dumps(scene.model_dump(mode="json")), encoding="utf-8")
+    assert load_scene(path)[0] == scene
+    path.write_text('{"name": "x",', encoding="utf-8")
+    with pytest.raises(SceneError, match=r"file: not valid JSON: Expecting property name"):
+        load_scene(path)
+
+
+def test_a_scene_of_more_obstacles_than_a_checker_can_hold_is_refused():
+    scene = load_scene("rescue")[0].model_dump(mode="json")
+    box = {"kind": "box", "center": [-9000.0, -9000.0, 1.0], "size": [1.0, 1.0, 1.0]}
+    scene["obstacles"] = [box] * (MAX_OBSTACLES + 1)
+    with pytest.raises(SceneError, match=rf"obstacles: .*at most {MAX_OBSTACLES} items"):
+        scene_from_dict(scene)
 
 
 def test_puzzle_payload_changes_the_system():
