@@ -28,7 +28,7 @@ from flycrane.model.kinematics import as_configurations
 from flycrane.model.statics import evaluate_statics
 from flycrane.model.statics_summary import statics_summary
 from flycrane.model.system_spec import SystemSpec, load_system, save_system
-from flycrane.quantities import MAX_TIME_BUDGET, Configuration
+from flycrane.quantities import MAX_LENGTH, MAX_TIME_BUDGET, Configuration
 from flycrane.user_files import output_directory
 from flycrane.world.scene import list_scenes, load_scene
 
@@ -45,9 +45,10 @@ def _load_spec(path: str | None) -> SystemSpec:
 
 
 def format_statics(summary: dict) -> str:
-    """A readable table of :func:`statics_summary`."""
+    """A readable table of :func:`statics_summary`; "n/a" where the statics are undefined
+    (a singular configuration has no tensions, and so no margins)."""
     q = summary["configuration"]
-    fmt = lambda v: "inf" if v is None else f"{v:9.3f}"  # noqa: E731
+    fmt = lambda v: f"{'n/a':>9}" if v is None else f"{v:9.3f}"  # noqa: E731
     lines = [
         "configuration: " + ", ".join(f"{k}={v:g}" for k, v in q.items()),
         "",
@@ -97,8 +98,14 @@ def _cmd_statics(args: argparse.Namespace) -> int:
 
 def _cmd_system(args: argparse.Namespace) -> int:
     spec = _load_spec(args.system)
-    if args.write:
-        save_system(spec, args.write)
+    if args.write is not None:
+        if not args.write.strip():
+            raise InputError([FieldProblem("--write", "an empty file name")])
+        try:
+            save_system(spec, args.write)
+        except OSError as error:
+            reason = error.strerror or str(error)
+            raise InputError([FieldProblem("--write", f"{args.write}: {reason}")]) from None
         print(f"wrote {args.write}")
     else:
         print(json.dumps(spec.model_dump(mode="json", by_alias=True, exclude_none=True), indent=2))
@@ -121,7 +128,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     for scene in args.scenes:
         load_scene(scene)  # unknown names and bad files fail here, before any work starts
     base = PlannerOptions(step=args.step)
-    out = output_directory(Path(args.out))
+    out = output_directory(args.out)
     total = len(args.scenes) * len(args.planners) * args.runs
     records = []
     with executor_for(args.cluster, args.workers) as executor:
@@ -272,7 +279,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         help=f"planner seconds per run (60; at most {MAX_TIME_BUDGET:g})",
     )
     bench.add_argument(
-        "--step", type=_positive(float), help="extension step (default: planner default)"
+        "--step",
+        type=_positive(float, MAX_LENGTH),
+        help=f"extension step (default: planner default; at most {MAX_LENGTH:g})",
     )
     bench.add_argument("--workers", type=_positive(int), help="processes (default: all CPUs)")
     bench.add_argument(
@@ -305,9 +314,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except FlyCraneError as error:
         print(f"flycrane {args.command}: error: {error}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader went away (``| head``): nothing left to say
+        sys.stderr.close()
+        return 1
     except OSError as error:
         print(f"flycrane {args.command}: error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"flycrane {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 def run() -> None:

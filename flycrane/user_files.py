@@ -63,15 +63,19 @@ def read_text(path: Path, field: str = "file", limit: int = MAX_TEXT_BYTES) -> s
         raise InputError([FieldProblem(field, f"not UTF-8 text (byte {error.start})")]) from None
 
 
-def output_directory(path: Path, field: str = "--out") -> Path:
+def output_directory(path: str | Path, field: str = "--out") -> Path:
     """``path`` made a directory to write into (with its parents), or an error naming
-    ``field``: an existing file there, a parent that is a file, no permission.
+    ``field``: an empty name (not the current directory by accident), an existing file
+    there, a parent that is a file, no permission.
 
     Raises
     ------
     InputError
         The directory cannot be made or is not one (field ``field``).
     """
+    if not str(path).strip():
+        raise InputError([FieldProblem(field, "an empty directory name")])
+    path = Path(path)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as error:

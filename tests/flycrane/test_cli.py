@@ -35,6 +35,43 @@ def test_singular_configuration_prints_without_nan(capsys):
     assert json.loads(out)["singular"] is True
 
 
+def test_a_singular_configuration_s_table_says_its_margins_are_undefined(capsys):
+    """No tensions, so no margins: "inf" would read as infinitely safe."""
+    assert main(["statics", "--q", "0", "0", "5", "0", "0.2", "0", "0", "0", "0"]) == 0
+    table = capsys.readouterr().out
+    cables = [line for line in table.splitlines() if line.lstrip().startswith("1  ")]
+    assert cables and all("inf" not in line and "n/a" in line for line in cables)
+    assert "screw Jacobian is singular" in table
+
+
+def test_an_interrupted_command_says_so_without_a_traceback(monkeypatch, capsys):
+    def interrupted(*_: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("flycrane.cli.evaluate_statics", interrupted)
+    assert main(["statics"]) == 130
+    assert capsys.readouterr().err == "flycrane statics: interrupted\n"
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [(["--write", ""], "--write: an empty file name"),
+     (["--write", "{missing}/x.toml"], "--write: {missing}/x.toml: No such file or directory"),
+     (["--write", "{folder}"], "--write: {folder}: Is a directory")],
+)  # fmt: skip
+def test_a_system_file_that_cannot_be_written_names_the_option(args, message, tmp_path, capsys):
+    where = {"missing": tmp_path / "missing", "folder": tmp_path / "d.toml"}
+    where["folder"].mkdir()
+    assert main(["system", *(a.format(**where) for a in args)]) == 2
+    captured = capsys.readouterr()
+    assert message.format(**where) in captured.err and not captured.out
+
+
+def test_an_empty_out_is_refused_not_taken_for_the_current_directory(tmp_path, capsys):
+    assert main(["bench", "--scenes", "rescue", "--runs", "1", "--out", ""]) == 2
+    assert "--out: an empty directory name" in capsys.readouterr().err
+
+
 def test_bad_input_is_a_message_and_exit_status_2(tmp_path, capsys):
     assert main(["statics", "--q", "0", "0", "5", "0", "-1", "0", "1", "1", "1"]) == 2
     assert "q.theta" in capsys.readouterr().err
@@ -57,6 +94,7 @@ def test_a_configuration_beyond_the_schemas_bounds_is_refused(capsys):
     ("option", "value"),
     [("--runs", "0"), ("--runs", "100000000"), ("--budget", "-1"), ("--budget", "inf"),
      ("--budget", "nan"), ("--step", "-0.1"), ("--step", "0"), ("--workers", "0"),
+     ("--step", "20000"), ("--step", "1e300"),
      ("--workers", "two"), ("--cluster", "garbage"), ("--cluster", "tcp://host"),
      ("--cluster", "dask://host:0")],
 )  # fmt: skip
