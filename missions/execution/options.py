@@ -10,6 +10,10 @@ from missions.execution.team import MonitorLimits
 #: The most a target may be ahead of its vehicle's present [s]: beyond, a lead would hide
 #: a slow vehicle rather than make up its controller's lag.
 MAX_LEAD_S = 0.3
+#: The rates an executor may tick at [Hz].
+RATE_RANGE_HZ = (10.0, 50.0)
+#: The longest start delay [s]: from the start command to plan time 0.
+MAX_START_DELAY_S = 60.0
 
 
 @dataclass(frozen=True)
@@ -29,9 +33,12 @@ class ExecutionOptions:
     limits: MonitorLimits = field(default_factory=MonitorLimits)
 
     def __post_init__(self) -> None:
-        if not 10.0 <= self.rate_hz <= 50.0:
-            raise ValueError(f"rate_hz: {self.rate_hz} is outside 10-50 Hz")
+        low, high = RATE_RANGE_HZ
+        if not low <= self.rate_hz <= high:
+            raise ValueError(f"rate_hz: {self.rate_hz} is outside {low:g}-{high:g} Hz")
         if self.lead is not None and not all(0.0 <= x <= MAX_LEAD_S for x in self.lead):
             raise ValueError(f"lead: {self.lead} is outside 0-{MAX_LEAD_S} s")
-        if self.start_delay is not None and not 0.0 <= self.start_delay <= 60.0:
-            raise ValueError(f"start_delay: {self.start_delay} is outside 0-60 s")
+        if self.start_delay is not None and not 0.0 <= self.start_delay <= MAX_START_DELAY_S:
+            raise ValueError(
+                f"start_delay: {self.start_delay} is outside 0-{MAX_START_DELAY_S:g} s"
+            )

@@ -33,14 +33,17 @@ from missions.flight_report.alignment import (
 from missions.flight_report.flight_mcap import write_flight_mcap
 from missions.flight_report.planned_flight import PlannedFlight
 from missions.flight_report.plot import plot_flight_report
-from missions.flight_report.record import EXECUTION_FILE, FlightRecord
+from missions.flight_report.record import (
+    EXECUTION_FILE,
+    FLOWN_FILE,
+    MCAP_FILE,
+    PLOT_FILE,
+    REPORT_FILE,
+    FlightRecord,
+)
 from missions.flight_report.report import FlightReport, flight_report
 from missions.flight_report.vehicle_log import VehicleLog, read_vehicle_log
 from missions.task.directory import TaskDirectory
-
-#: What write_report saves, and the viewer's flown-path file.
-REPORT_FILE, PLOT_FILE, FLOWN_FILE = "report.json", "report.png", "flown.json"
-MCAP_FILE = "flight.mcap"
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """A recorded flight's own facts (``flight.json``): what the ground station did and when,
-beside the vehicles' tlogs. The SITL harness writes it (:mod:`missions.sitl.flight`); the
-flight report reads it."""
+beside the vehicles' tlogs, and the names of every file of a flight's directory. The SITL
+harness writes it (:mod:`missions.sitl.flight`); the flight report reads it."""
 
 from __future__ import annotations
 
@@ -14,6 +14,22 @@ from flycrane.errors import FieldProblem, InputError
 FLIGHT_FILE = "flight.json"
 #: An executor's record beside it (:class:`missions.execution.record.ExecutionRecord`).
 EXECUTION_FILE = "execution.json"
+#: What the flight report writes, and the viewer's flown-path file.
+REPORT_FILE, PLOT_FILE, FLOWN_FILE = "report.json", "report.png", "flown.json"
+MCAP_FILE = "flight.mcap"
+#: Every file of a flight's directory: its record, the vehicles' logs, its report.
+FLIGHT_FILES = (
+    FLIGHT_FILE, EXECUTION_FILE, *(f"drone{k}.tlog" for k in (1, 2, 3)),
+    REPORT_FILE, PLOT_FILE, FLOWN_FILE, MCAP_FILE,
+)  # fmt: skip
+
+
+def fresh_flight_directory(out_dir: Path) -> None:
+    """Make ``out_dir`` for a flight and remove an earlier flight's files from it: beside
+    the new flight's logs, the old report would read as the new flight's."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for name in FLIGHT_FILES:
+        (out_dir / name).unlink(missing_ok=True)
 
 
 @dataclass(frozen=True)

@@ -23,12 +23,14 @@ import json
 import math
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from pydantic import ValidationError
 
 from flycrane.errors import FlyCraneError, field_messages
-from missions.execution.options import MAX_LEAD_S
+from flycrane.user_files import output_directory
+from missions.execution.options import MAX_LEAD_S, MAX_START_DELAY_S, RATE_RANGE_HZ
 from missions.sitl.faults import KINDS, FaultPlan
 from missions.sitl.netns import bring_up_loopback, isolated, isolated_command
 from missions.sitl.settings import SitlSettings
@@ -71,6 +73,8 @@ def _cmd_fly_sitl(args: argparse.Namespace) -> int:
     )
     out = Path(args.out)
     try:
+        if out.exists():  # the flight makes it fresh once its checks have passed
+            output_directory(out)
         flight = fly_on_sitl(Path(args.task_dir), out, settings, options)
     except FlyCraneError as error:
         print(f"fly-sitl: {error}", file=sys.stderr)
@@ -114,14 +118,19 @@ def _parameter(text: str) -> tuple[str, float]:
     return name, number
 
 
-def _lead(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
-    if not 0.0 <= value <= MAX_LEAD_S:
-        raise argparse.ArgumentTypeError(f"{value} s is outside 0-{MAX_LEAD_S} s")
-    return value
+def _within(low: float, high: float, unit: str) -> Callable[[str], float]:
+    """An argparse type: a number in [low, high] (NaN is in no range)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {unit}, got {text!r}") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{text} is outside {low:g}-{high:g} {unit}")
+        return value
+
+    return parse
 
 
 def _fault(text: str) -> FaultPlan:
@@ -146,11 +155,11 @@ def register(commands: argparse._SubParsersAction) -> None:
         "clock, or a player on board (default: missions)",
     )  # fmt: skip
     command.add_argument(
-        "--rate-hz", type=float, default=20.0,
+        "--rate-hz", type=_within(*RATE_RANGE_HZ, "Hz"), default=20.0,
         help="targets per second in stream mode, ticks of the clock otherwise (10-50)",
     )  # fmt: skip
     command.add_argument(
-        "--lead", nargs=2, type=_lead, metavar=("HORIZONTAL", "VERTICAL"),
+        "--lead", nargs=2, type=_within(0.0, MAX_LEAD_S, "s"), metavar=("HORIZONTAL", "VERTICAL"),
         help="targets this far ahead of each drone's present [s], what its position "
         "controller lags them by (stream, onboard; default: the mode's, measured on "
         "ArduCopter 4.5.7's default tuning)",
@@ -178,7 +187,8 @@ def register(commands: argparse._SubParsersAction) -> None:
         "retreat along the plan to its start (stream, onboard)",
     )  # fmt: skip
     command.add_argument(
-        "--release-delays", nargs=3, type=float, default=(0.0, 0.0, 0.0), metavar="S",
+        "--release-delays", nargs=3, type=_within(0.0, MAX_START_DELAY_S, "s"),
+        default=(0.0, 0.0, 0.0), metavar="S",
         help="release drone 1, 2, 3 this much later [s] (missions mode; a deliberately "
         "perturbed flight)",
     )  # fmt: skip

@@ -55,7 +55,12 @@ from missions.execution.readiness import Readiness, check_readiness, settings_re
 from missions.execution.stream import StreamExecutor
 from missions.execution.team import MonitorLimits
 from missions.export.items import DroneMission
-from missions.flight_report.record import EXECUTION_FILE, FlightRecord, VehicleRecord
+from missions.flight_report.record import (
+    EXECUTION_FILE,
+    FlightRecord,
+    VehicleRecord,
+    fresh_flight_directory,
+)
 from missions.mavlink.commands import set_message_interval
 from missions.mavlink.errors import MavlinkError
 from missions.mavlink.fleet import Fleet, on_every_vehicle
@@ -172,7 +177,7 @@ def fly_on_sitl(
     task_dir, out_dir = task_dir.resolve(), out_dir.resolve()
     plan = FlightPlanFiles.read(task_dir, options.mode)
     check_within(options.faults, plan.flown_duration(options.mode))
-    out_dir.mkdir(parents=True, exist_ok=True)
+    fresh_flight_directory(out_dir)
     policy = _policy(settings)
     names = [f"drone{k}" for k in (1, 2, 3)]
     scripts = (PLAYER_SCRIPT,) if options.mode == "onboard" else ()
@@ -222,15 +227,9 @@ def _executor(
 
 
 def _fly(
-    fleet: Fleet,
-    plan: FlightPlanFiles,
-    settings: SitlSettings,
-    options: SitlFlightOptions,
-    policy: RetryPolicy,
-    clock: StretchedClock,
-    task_dir: Path,
-    out_dir: Path,
-) -> FlightRecord:
+    fleet: Fleet, plan: FlightPlanFiles, settings: SitlSettings, options: SitlFlightOptions,
+    policy: RetryPolicy, clock: StretchedClock, task_dir: Path, out_dir: Path,
+) -> FlightRecord:  # fmt: skip
     links = fleet.links
     sim = settings.speedup
     # through the boot, no more messages per wall second than the flight's pace will bring
@@ -276,10 +275,8 @@ def _fly(
             vehicle.forget_clock_before(aligned.settled_at)
         leads = (aligned.before, aligned.after)
         injected = _execute(executor, plan, options, policy, pace)
-        (out_dir / EXECUTION_FILE).write_text(
-            json.dumps(executor.record.as_dict() if executor.record else {}, indent=2) + "\n",
-            encoding="utf-8",
-        )
+        record = executor.record.as_dict() if executor.record else {}
+        (out_dir / EXECUTION_FILE).write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
     else:
         logger.warning("release refused: %s", "; ".join(readiness.reasons))
     _wait_margin(watch, options.end_margin_s, pace)

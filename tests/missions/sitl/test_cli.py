@@ -8,6 +8,7 @@ import sys
 
 import pytest
 
+from missions.flight_report.record import FLIGHT_FILES, fresh_flight_directory
 from missions.sitl.faults import FaultPlan
 
 
@@ -30,6 +31,13 @@ from missions.sitl.faults import FaultPlan
         (["--fault", "late:2:4:1"], "fault time 4.0: a late start strikes at the start, 0"),
         (["--parameter", "SIM_WIND_SPD=inf"], "expected NAME=VALUE, a finite number"),
         (["--parameter", "=3"], "expected NAME=VALUE, a finite number, got '=3'"),
+        # each used to boot three simulators first, then fail, hang or fly
+        (["--rate-hz", "0"], "argument --rate-hz: 0 is outside 10-50 Hz"),
+        (["--rate-hz", "nan"], "argument --rate-hz: nan is outside 10-50 Hz"),
+        (["--release-delays", "nan", "0", "0"], "argument --release-delays: nan is outside"),
+        (["--release-delays", "1e9", "0", "0"], "argument --release-delays: 1e9 is outside"),
+        (["--release-delays", "-1", "0", "0"], "argument --release-delays: -1 is outside 0-60 s"),
+        (["--lead", "0.5", "0"], "argument --lead: 0.5 is outside 0-0.3 s"),
     ],
 )
 def test_a_bad_argument_is_refused_with_its_name(args, message, tmp_path):
@@ -76,3 +84,24 @@ def test_a_fault_after_the_plans_end_is_refused_before_any_simulator_starts(mode
     assert "fly-sitl: fault: gps:2:1000 strikes at or after the plan's end at" in done.stderr
     assert "Traceback" not in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_an_out_that_is_a_file_is_refused_naming_it(tmp_path):
+    (tmp_path / "drone1.parm").write_text("mine", encoding="utf-8")
+    done = subprocess.run(
+        [sys.executable, "-m", "flycrane.cli", "fly-sitl", str(tmp_path), "--out",
+         str(tmp_path / "drone1.parm"), "--shared-network"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert f"--out: {tmp_path / 'drone1.parm'}: exists and is not a directory" in done.stderr
+    assert (tmp_path / "drone1.parm").read_text(encoding="utf-8") == "mine"
+
+
+def test_a_new_flight_clears_the_last_flight_s_files_and_no_others(tmp_path):
+    """Beside a new flight's logs, the last flight's report would read as the new one's."""
+    for name in (*FLIGHT_FILES, "notes.txt"):
+        (tmp_path / name).write_text("old", encoding="utf-8")
+    fresh_flight_directory(tmp_path)
+    assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+    assert {"flight.json", "report.json", "drone2.tlog"} <= set(FLIGHT_FILES)
