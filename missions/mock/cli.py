@@ -11,7 +11,6 @@ a one-line message (the ``flycrane`` main turns the typed errors into that).
 from __future__ import annotations
 
 import argparse
-import math
 import signal
 import sys
 import threading
@@ -22,6 +21,13 @@ from missions.mock.autopilot import SITL_HOME, MockAutopilot, MockConfig
 from missions.mock.config import Geodetic, Imperfections
 from missions.mock.faults import FaultInjection
 from missions.mock.sim_clock import SimClock
+
+#: The longest run [s of wall time], and boot without mission space, a mock is given.
+MAX_RUN_S = 1.0e6
+#: The fastest a mock runs [simulated s per wall s]: beyond, it runs as fast as the CPU lets.
+MAX_SPEEDUP = 1000.0
+#: The largest position noise [m] (a GNSS fix without corrections errs a few metres).
+MAX_NOISE_M = 100.0
 
 
 def register(subparsers: Any) -> None:
@@ -87,9 +93,19 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Start the mock and serve until SIGINT/SIGTERM or ``--duration``."""
-    if args.duration is not None and not 0 < args.duration < math.inf:
-        problem = FieldProblem("--duration", f"must be finite and > 0, got {args.duration}")
-        raise InputError([problem])
+    limits = (  # (option, value, whether 0 is allowed, most): what a run can stand
+        ("--duration", args.duration, False, MAX_RUN_S),
+        ("--speedup", args.speedup, False, MAX_SPEEDUP),
+        ("--boot-no-space", args.boot_no_space, True, MAX_RUN_S),
+        ("--noise", args.noise, True, MAX_NOISE_M),
+    )
+    problems = [
+        FieldProblem(name, f"must be in {'[' if zero else '('}0, {most:g}], got {value}")
+        for name, value, zero, most in limits
+        if value is not None and not ((0 <= value if zero else 0 < value) and value <= most)
+    ]
+    if problems:
+        raise InputError(problems)
     faults = FaultInjection(
         drop_incoming=args.drop,
         drop_outgoing=args.drop,
@@ -104,9 +120,13 @@ def run(args: argparse.Namespace) -> int:
         position_noise_m=args.noise,
         seed=args.seed,
     )
+    try:
+        home = Geodetic(*args.home)
+    except InputError as error:
+        raise error.under("--home") from None
     config = MockConfig(
         system_id=args.system_id,
-        home=Geodetic(*args.home),
+        home=home,
         boot_no_space_s=args.boot_no_space,
         imperfections=imperfections,
         faults=faults,
@@ -118,7 +138,12 @@ def run(args: argparse.Namespace) -> int:
         sig: signal.signal(sig, lambda *_: stop.set()) for sig in (signal.SIGINT, signal.SIGTERM)
     }
     try:
-        with MockAutopilot(address, config, clock):
+        mock = MockAutopilot(address, config, clock)
+    except OSError as error:
+        where = "--connection" if args.connection else "--host"
+        raise InputError([FieldProblem(where, f"{address}: {error.strerror or error}")]) from None
+    try:
+        with mock:
             print(
                 f"mock autopilot: system {config.system_id} on {address}, "
                 f"speed-up {clock.speedup:g}; Ctrl-C stops it",

@@ -10,6 +10,10 @@ from flycrane.errors import FieldProblem, InputError
 from flycrane.quantities import MAX_SEED
 from missions.autopilots.ardupilot import MIN_GROUND_SPEED
 
+#: How far from sea level [m] a mock's home may be, well within what MAVLink's altitudes
+#: (millimetres in 32 bits) carry.
+ALTITUDE_RANGE_M = 1.0e5
+
 
 def _positive(owner: str, **values: float) -> None:
     problems = [
@@ -35,8 +39,9 @@ class Geodetic:
             problems.append(FieldProblem("lat_deg", f"must be in [-90, 90], got {self.lat_deg}"))
         if not -180.0 <= self.lon_deg <= 180.0:
             problems.append(FieldProblem("lon_deg", f"must be in [-180, 180], got {self.lon_deg}"))
-        if not math.isfinite(self.alt_m):
-            problems.append(FieldProblem("alt_m", f"must be finite, got {self.alt_m}"))
+        if not -ALTITUDE_RANGE_M <= self.alt_m <= ALTITUDE_RANGE_M:
+            bound = f"[-{ALTITUDE_RANGE_M:g}, {ALTITUDE_RANGE_M:g}]"
+            problems.append(FieldProblem("alt_m", f"must be in {bound}, got {self.alt_m}"))
         if problems:
             raise InputError(problems, source="Geodetic")
 

@@ -57,7 +57,7 @@ def test_mock_autopilot_process_answers_a_heartbeat_waiting_client():
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--speedup", "0"], "speedup: must be finite and > 0"),
+        (["--speedup", "0"], "--speedup: must be in (0, 1000], got 0"),
         (["--port", "http"], "invalid int value: 'http'"),
     ],
 )
@@ -82,16 +82,24 @@ def test_bad_arguments_exit_non_zero_with_a_message(args, message):
         (["--system-id", "0"], "system_id: must be in 1..255"),
         (["--slowdown", "2"], "waypoint_slowdown: must be in [0, 1]"),
         (["--connection", "carrier-pigeon"], "expected udpin:HOST:PORT"),
-        (["--duration", "0"], "--duration: must be finite and > 0"),
+        (["--duration", "0"], "--duration: must be in (0, 1e+06], got 0"),
         # each used to start a mock that could not run, or to end in a traceback
-        (["--duration", "inf"], "--duration: must be finite and > 0"),
-        (["--speedup", "inf"], "speedup: must be finite and > 0"),
+        (["--duration", "inf"], "--duration: must be in (0, 1e+06], got inf"),
+        (["--speedup", "inf"], "--speedup: must be in (0, 1000], got inf"),
         (["--seed", "-1"], "seed: must be in 0..4294967295"),
-        (["--noise", "nan"], "position_noise_m: must be finite and >= 0"),
+        (["--noise", "nan"], "--noise: must be in [0, 100], got nan"),
         (["--speed-scale", "inf"], "speed_scale: must be finite and > 0"),
         (["--start-delay", "nan"], "start_delay_s: must be finite and >= 0"),
-        (["--boot-no-space", "inf"], "boot_no_space_s: must be finite and >= 0"),
-        (["--home", "0", "0", "inf"], "alt_m: must be finite"),
+        (["--boot-no-space", "inf"], "--boot-no-space: must be in [0, 1e+06], got inf"),
+        (["--home", "0", "0", "inf"], "--home.alt_m: must be in [-100000, 100000]"),
+        # each was accepted: a mock that overflowed its timer, flew a kilometre-high home,
+        # or ran as fast as a core would let it
+        (["--duration", "1e300"], "--duration: must be in (0, 1e+06], got 1e+300"),
+        (["--home", "47", "8", "1e9"], "--home.alt_m: must be in [-100000, 100000]"),
+        (["--noise", "1e300"], "--noise: must be in [0, 100], got 1e+300"),
+        (["--boot-no-space", "1e300"], "--boot-no-space: must be in [0, 1e+06]"),
+        (["--speedup", "1e12"], "--speedup: must be in (0, 1000], got 1000000000000.0"),
+        (["--host", "999.1.1.1"], "--host: udpin:999.1.1.1:14550: "),
     ],
 )
 def test_invalid_values_are_named(capsys, args, message):
