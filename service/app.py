@@ -15,12 +15,11 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import AsyncIterator
-from concurrent.futures import Executor
+from concurrent.futures import Executor, ThreadPoolExecutor
 from contextlib import asynccontextmanager, suppress
 
 from fastapi import FastAPI
 from fastapi.concurrency import run_in_threadpool
-from starlette.middleware.trustedhost import TrustedHostMiddleware
 
 from flycrane.execution import executor_for
 from service.api.routes import docs, health, presets, statics, tasks, view
@@ -28,14 +27,19 @@ from service.deps import READ, ServiceState
 from service.errors import ErrorBody, error_responses, install_error_handlers
 from service.jobs import JobManager
 from service.lifecycle import RETENTION_INTERVAL, purge_expired
+from service.limits import Slots
 from service.metrics import ServiceMetrics
-from service.middleware import BodySizeLimit, JsonBodiesOnly, SecurityHeaders
+from service.middleware import BodySizeLimit, JsonBodiesOnly, SecurityHeaders, TrustedHosts
 from service.settings import Settings, get_settings
 from service.startup import open_storage
 from service.storage import TaskStore
 from service.uploads import UploadRunner
 
 logger = logging.getLogger(__name__)
+
+#: Retry-After of a what-if refused because others are computed [s]: they are short (at
+#: most 1000 configurations each).
+STATICS_RETRY_AFTER = 1
 
 
 async def _sweep(state: ServiceState) -> None:
@@ -87,7 +91,9 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
             shared_disk=settings.dask_scheduler is None,
         )
         uploads = UploadRunner(settings.max_concurrent_uploads, settings.upload_timeout)
-        state = ServiceState(settings, store, jobs, metrics, uploads)
+        what_ifs = Slots(settings.max_concurrent_statics, "statics requests", STATICS_RETRY_AFTER)
+        health_thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="health")
+        state = ServiceState(settings, store, jobs, metrics, uploads, what_ifs, health_thread)
         app.state.service = state
         purge_expired(store, settings.tasks_dir, settings.retention_days)
         resumed = jobs.resume_unfinished()
@@ -102,6 +108,7 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
                 with suppress(asyncio.CancelledError):
                     await timer
             uploads.stop()
+            health_thread.shutdown(wait=False)
             jobs.stop()
             store.engine.dispose()
             lock.release()
@@ -141,7 +148,11 @@ def create_app(settings: Settings | None = None, executor: Executor | None = Non
     app.add_middleware(JsonBodiesOnly)
     app.add_middleware(BodySizeLimit, limit=settings.max_request_bytes)
     # A request for another host name is refused before anything else runs ...
-    app.add_middleware(TrustedHostMiddleware, allowed_hosts=settings.host_patterns)
+    app.add_middleware(
+        TrustedHosts,
+        allowed_hosts=settings.host_patterns,
+        health_hosts=settings.health_host_patterns,
+    )
     # ... and every answer, that refusal included, carries the security headers.
     app.add_middleware(SecurityHeaders)
     return app

@@ -1,8 +1,13 @@
-"""Shared dependencies of the routes: settings, store, jobs, metrics, authentication."""
+"""Shared dependencies of the routes: settings, store, jobs, metrics, authentication.
+
+They do no blocking work, so they are coroutines: FastAPI runs them on the event loop, never
+waiting for a thread of its pool (which busy requests may all hold; /healthz must answer).
+"""
 
 from __future__ import annotations
 
 import hmac
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Annotated
 
@@ -12,6 +17,7 @@ from pydantic import SecretStr
 
 from service.errors import UnauthorizedError
 from service.jobs import JobManager
+from service.limits import Slots
 from service.metrics import ServiceMetrics
 from service.settings import Settings
 from service.storage import TaskStore
@@ -27,9 +33,13 @@ class ServiceState:
     jobs: JobManager
     metrics: ServiceMetrics
     uploads: UploadRunner
+    #: /v1/statics requests computed at once (``max_concurrent_statics``).
+    statics: Slots
+    #: The health check's own thread: it answers when every request thread is busy.
+    health: ThreadPoolExecutor
 
 
-def get_state(request: Request) -> ServiceState:
+async def get_state(request: Request) -> ServiceState:
     return request.app.state.service
 
 
@@ -54,7 +64,7 @@ def _refuse(what: str) -> UnauthorizedError:
     )
 
 
-def require_token(
+async def require_token(
     state: StateDep,
     credentials: Credentials,
 ) -> None:
@@ -64,7 +74,7 @@ def require_token(
         raise _refuse("change tasks")
 
 
-def require_reader(
+async def require_reader(
     state: StateDep,
     credentials: Credentials,
 ) -> None:
@@ -78,7 +88,7 @@ def require_reader(
         raise _refuse("read tasks")
 
 
-def base_url(request: Request, state: StateDep) -> str:
+async def base_url(request: Request, state: StateDep) -> str:
     """Where URLs in responses start: ``public_url`` behind a proxy, else the request's own
     base (its Host is one of ``allowed_hosts``, checked before any route runs)."""
     configured = state.settings.public_url

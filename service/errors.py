@@ -6,14 +6,16 @@ Every refusal names the field or the object and the reason, in FastAPI's own err
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import json
+from collections.abc import Mapping, Sequence
+from itertools import chain, islice
 from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel
+from pydantic import BaseModel, ValidationError
 from sqlalchemy.exc import OperationalError, SQLAlchemyError
 from sqlalchemy.exc import TimeoutError as PoolTimeoutError
 
@@ -103,6 +105,18 @@ class DataDirLockedError(ServiceError):
     status_code = 503
 
 
+class InvalidBodyError(ServiceError):
+    """A request body its schema refuses (422): ``detail`` is the answer's, made where the
+    body was validated, off the event loop (:func:`schema_detail` of :func:`first_errors`)."""
+
+    status_code = 422
+
+    def __init__(self, error: ValidationError) -> None:
+        count = error.error_count()
+        self.detail = schema_detail(first_errors(error, READ_PROBLEMS), ("body",), count)
+        super().__init__(f"the request body has {count} problem(s)")
+
+
 class StartupError(ServiceError):
     """The server cannot start on its storage: the data directory or the database is unusable
     (one line naming the file and the reason; ``flycrane serve`` prints it and exits 1)."""
@@ -113,6 +127,10 @@ class StartupError(ServiceError):
 #: Problems a 422 lists; the others are counted (a request of many small mistakes must not
 #: make the server answer many times its size: issue 22, item 6).
 MAX_LISTED_PROBLEMS = 20
+
+#: Schema errors made readable for a 422: enough to list MAX_LISTED_PROBLEMS once those of a
+#: union's branches the input plainly did not mean are dropped; the others are only counted.
+READ_PROBLEMS = 5 * MAX_LISTED_PROBLEMS
 
 #: Retry-After for a busy or unreachable database [s].
 DATABASE_RETRY_AFTER = 5
@@ -131,7 +149,8 @@ _DESCRIPTIONS = {
     404: "no such task or artifact",
     409: "the task is not in a state that allows this, or its files are unusable",
     413: "request body larger than FLYCRANE_MAX_REQUEST_BYTES",
-    503: "busy: queue full, database locked or no worker pool; see Retry-After",
+    503: "busy: queue full, as many uploads or what-ifs running as allowed, database locked "
+    "or no worker pool; see Retry-After",
 }
 
 
@@ -148,42 +167,90 @@ def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
     return responses
 
 
-def listed(details: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def listed(details: list[dict[str, Any]], total: int | None = None) -> list[dict[str, Any]]:
     """The first :data:`MAX_LISTED_PROBLEMS` entries of a 422's ``detail``, and one more
-    counting the others (FastAPI's entry shape, type ``too_many_problems``)."""
-    if len(details) <= MAX_LISTED_PROBLEMS:
+    counting the others (FastAPI's entry shape, type ``too_many_problems``); ``total`` is how
+    many problems there are in all when ``details`` holds only the first of them."""
+    total = len(details) if total is None else total
+    if total <= MAX_LISTED_PROBLEMS:
         return details
-    more = len(details) - MAX_LISTED_PROBLEMS
+    shown = details[:MAX_LISTED_PROBLEMS]
     summary = {
         "loc": ["body"],
-        "msg": f"and {more} more ({len(details)} in all); the first {MAX_LISTED_PROBLEMS} "
-        "are listed",
+        "msg": f"and {total - len(shown)} more ({total} in all); the first {len(shown)} are listed",
         "type": "too_many_problems",
     }
-    return [*details[:MAX_LISTED_PROBLEMS], summary]
+    return [*shown, summary]
+
+
+def schema_detail(
+    errors: Sequence[Mapping[str, Any]], prefix: tuple[str, ...] = (), count: int | None = None
+) -> list[dict[str, Any]]:
+    """A 422's ``detail`` for pydantic's ``errors`` (``prefix`` before each location, as
+    FastAPI writes them): the first ones made readable (:func:`readable_errors`), the others
+    counted (:func:`listed`); ``count`` is how many errors there are when ``errors`` holds
+    only the first of them.
+
+    Only the first :data:`READ_PROBLEMS` errors are made readable, so that a body of half a
+    million wrong items costs no more here than one of twenty; the errors past them are
+    counted as pydantic reports them.
+    """
+    count = len(errors) if count is None else count
+    head = [{**e, "loc": (*prefix, *e["loc"])} for e in errors[:READ_PROBLEMS]]
+    readable = readable_errors(head)
+    total = len(readable) + count - len(head)
+    return jsonable_encoder(listed(readable, total))
+
+
+#: What may come between the entries of a JSON array.
+_SEPARATORS = frozenset(", \t\n\r")
+
+
+def first_errors(error: ValidationError, count: int) -> list[dict[str, Any]]:
+    """The first ``count`` entries of ``error.errors()`` (without URL and context), the
+    others not made.
+
+    ``errors()`` makes a Python object of every entry, holding the interpreter lock (and the
+    event loop with it) for as long as the body has wrong items; pydantic's JSON of them is
+    made many times faster, and is read here only as far as needed.
+    """
+    text = error.json(include_url=False, include_context=False)
+    decoder = json.JSONDecoder()
+    found: list[dict[str, Any]] = []
+    at = 1  # past "["
+    while len(found) < count:
+        while text[at] in _SEPARATORS:
+            at += 1
+        if text[at] == "]":
+            break
+        entry, at = decoder.raw_decode(text, at)
+        found.append(entry)
+    return found
 
 
 def listed_reasons(reason: InvalidReason) -> str:
     """Why a configuration is invalid, as :class:`InvalidReason` says it, the first
     :data:`MAX_LISTED_PROBLEMS` reasons listed and the others counted."""
-    parts = [f"outside the bounds: {b}" for b in reason.out_of_bounds]
-    parts += [str(v) for v in reason.violations] + [str(c) for c in reason.contacts]
-    if len(parts) <= MAX_LISTED_PROBLEMS:
+    total = len(reason.out_of_bounds) + len(reason.violations) + len(reason.contacts)
+    if total <= MAX_LISTED_PROBLEMS:
         return str(reason)
-    more = len(parts) - MAX_LISTED_PROBLEMS
-    return "; ".join(parts[:MAX_LISTED_PROBLEMS]) + f"; and {more} more ({len(parts)} in all)"
+    parts = chain(
+        (f"outside the bounds: {b}" for b in reason.out_of_bounds),
+        map(str, reason.violations),
+        map(str, reason.contacts),
+    )
+    first = "; ".join(islice(parts, MAX_LISTED_PROBLEMS))
+    return f"{first}; and {total - MAX_LISTED_PROBLEMS} more ({total} in all)"
 
 
 def input_error_body(error: InputError) -> dict:
     """FastAPI's 422 body for field problems found after schema validation."""
-    return {
-        "detail": listed(
-            [
-                {"loc": ["body", *p.field.split(".")], "msg": p.reason, "type": "value_error"}
-                for p in error.problems
-            ]
-        )
-    }
+    first = error.problems[:MAX_LISTED_PROBLEMS]
+    detail = [
+        {"loc": ["body", *p.field.split(".")], "msg": p.reason, "type": "value_error"}
+        for p in first
+    ]
+    return {"detail": listed(detail, len(error.problems))}
 
 
 def install_error_handlers(app: FastAPI) -> None:
@@ -197,8 +264,11 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _schema_error(_request: Request, error: RequestValidationError) -> JSONResponse:
-        body = {"detail": listed(readable_errors(jsonable_encoder(error.errors())))}
-        return JSONResponse(body, status_code=422)
+        return JSONResponse({"detail": schema_detail(error.errors())}, status_code=422)
+
+    @app.exception_handler(InvalidBodyError)
+    async def _invalid_body(_request: Request, error: InvalidBodyError) -> JSONResponse:
+        return JSONResponse({"detail": error.detail}, status_code=422)
 
     @app.exception_handler(InputError)
     async def _input_error(_request: Request, error: InputError) -> JSONResponse:

@@ -1,10 +1,13 @@
-"""ASGI middleware of the service: the request-body limit (413) enforced on the bytes, JSON
-request bodies only (415), and the security headers of every response
-(:mod:`service.security`)."""
+"""ASGI middleware of the service: the allowed Host names (400), the request-body limit (413)
+enforced on the bytes, JSON request bodies only (415), and the security headers of every
+response (:mod:`service.security`)."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from starlette.datastructures import MutableHeaders
+from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.responses import JSONResponse
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
@@ -34,6 +37,37 @@ class SecurityHeaders:
             await send(message)
 
         await self.app(scope, receive, hardened)
+
+
+class TrustedHosts:
+    """Refuse requests addressed to a host name other than ``allowed_hosts`` with 400
+    (Starlette's TrustedHostMiddleware), but let ``GET /healthz`` be addressed to
+    ``health_hosts`` too: this machine's own names (``Settings.health_host_patterns``), so
+    that a health check run beside the server, such as the Docker image's on
+    ``http://127.0.0.1:8000/healthz``, passes when ``allowed_hosts`` names only the public
+    host a proxy forwards.
+
+    This opens no way in to DNS rebinding: a page that rebinds its own name to this machine
+    sends that name as Host, never a loopback one, and a page's request to a loopback name is
+    cross-origin, so it cannot read the answer. Nor does /healthz put the Host in what it
+    answers (no URLs) or hold task data; it is open without a token anyway.
+    """
+
+    HEALTH_PATH = "/healthz"
+
+    def __init__(
+        self, app: ASGIApp, allowed_hosts: Sequence[str], health_hosts: Sequence[str]
+    ) -> None:
+        self.checked = TrustedHostMiddleware(app, allowed_hosts=allowed_hosts)
+        self.health = TrustedHostMiddleware(app, allowed_hosts=health_hosts)
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        health = (
+            scope["type"] == "http"
+            and scope["method"] == "GET"
+            and scope["path"] == self.HEALTH_PATH
+        )
+        await (self.health if health else self.checked)(scope, receive, send)
 
 
 class BodySizeLimit:

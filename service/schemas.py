@@ -1,20 +1,31 @@
 """Request and response schemas of the HTTP API (``XCreate`` / ``XPublic`` families).
 
 The task body itself is :class:`missions.task.spec.TaskSpec`, shared with ``flycrane plan``.
+
+Request bodies are not validated by FastAPI, which does it on the event loop and makes one
+entry per problem there: a body of many wrong items under the size limit (a scene's
+obstacles, a mesh's vertices, unknown keys) would hold every request up. The routes take the
+parsed JSON (:data:`TaskBody`, :data:`StaticsBody`, :data:`UploadBody`, each documented as
+its schema) and call :func:`validated` on a worker thread.
 """
 
 from __future__ import annotations
 
 import math
 from datetime import datetime
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
-from pydantic import BaseModel, ConfigDict, Field
+from fastapi import Body
+from pydantic import BaseModel, ConfigDict, Field, PlainValidator, ValidationError
 
 from flycrane.model.cost import CostForm
 from flycrane.model.system_spec import SystemSpec
 from flycrane.quantities import Configuration
+from missions.task.spec import TaskSpec
+from service.errors import InvalidBodyError
 from service.storage import TaskRecord, TaskStatus
+
+M = TypeVar("M", bound=BaseModel)
 
 
 class TaskAccepted(BaseModel):
@@ -80,6 +91,34 @@ class StaticsCreate(BaseModel):
     cost_form: CostForm = CostForm.NORMALIZED
 
 
+def _as_parsed(value: Any) -> Any:
+    return value
+
+
+#: The body of POST /v1/tasks as FastAPI hands it over: the parsed JSON, not validated yet
+#: (the API's description shows TaskSpec); the route validates it (:func:`validated`).
+TaskBody = Annotated[Any, Body(), PlainValidator(_as_parsed, json_schema_input_type=TaskSpec)]
+#: The body of POST /v1/statics, likewise (:class:`StaticsCreate`).
+StaticsBody = Annotated[
+    Any, Body(), PlainValidator(_as_parsed, json_schema_input_type=StaticsCreate)
+]
+
+
+def validated(model: type[M], body: Any) -> M:
+    """``body``, a request's parsed JSON, as a ``model``. Call it on a worker thread: pydantic
+    makes one entry per problem, however many items of the body are wrong.
+
+    Raises
+    ------
+    InvalidBodyError
+        The model refuses it (422: the first problems listed, the others counted).
+    """
+    try:
+        return model.model_validate(body)
+    except ValidationError as error:
+        raise InvalidBodyError(error) from None
+
+
 Address = Annotated[str, Field(min_length=1, max_length=200)]
 
 
@@ -92,6 +131,10 @@ class UploadCreate(BaseModel):
         description='e.g. "udpout:127.0.0.1:14550" or "/dev/ttyACM0:57600"; three different '
         "vehicles, each allowed by FLYCRANE_UPLOAD_NETWORKS or FLYCRANE_UPLOAD_DEVICES"
     )
+
+
+#: The body of POST /v1/tasks/{id}/upload, likewise (:class:`UploadCreate`).
+UploadBody = Annotated[Any, Body(), PlainValidator(_as_parsed, json_schema_input_type=UploadCreate)]
 
 
 class ParameterDifference(BaseModel):

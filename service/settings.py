@@ -11,12 +11,15 @@ unless widened here, and finished tasks are deleted after ``retention_days``.
 
 from __future__ import annotations
 
+import re
 from functools import lru_cache
 from ipaddress import AddressValueError, IPv4Network, IPv6Address, IPv6Network
 from pathlib import Path
 
 from pydantic import AnyHttpUrl, Field, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import ArgumentError, NoSuchModuleError
 
 from flycrane.execution import scheduler_address
 
@@ -29,8 +32,12 @@ DEFAULT_UPLOAD_DEVICES = (
     r"/dev/ttyACM[0-9]+",
     r"/dev/serial/by-id/[A-Za-z0-9_.+-]+",
 )
+#: This machine's own names.
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 #: Host names a request may be addressed to by default: loopback only.
-DEFAULT_ALLOWED_HOSTS = ("127.0.0.1", "localhost", "::1")
+DEFAULT_ALLOWED_HOSTS = LOOPBACK_HOSTS
+#: What a database URL looks like (in refusals).
+DATABASE_URL_EXAMPLE = "postgresql+psycopg://user:password@host/dbname"
 #: Shortest token accepted: a guess over HTTP must be hopeless.
 MIN_TOKEN_LENGTH = 16
 
@@ -38,7 +45,10 @@ MIN_TOKEN_LENGTH = 16
 class Settings(BaseSettings):
     """Configuration of the mission service (environment prefix ``FLYCRANE_``)."""
 
-    model_config = SettingsConfigDict(env_prefix="FLYCRANE_", frozen=True)
+    # A refusal never quotes the value: it may be a token, or a URL with a password.
+    model_config = SettingsConfigDict(
+        env_prefix="FLYCRANE_", frozen=True, hide_input_in_errors=True
+    )
 
     data_dir: Path = Field(Path("data"), description="database file and artifacts live here")
     database_url: str | None = Field(
@@ -111,6 +121,13 @@ class Settings(BaseSettings):
     max_concurrent_uploads: int = Field(
         4, ge=1, le=64, description="uploads running at once; more are refused with 503"
     )
+    max_concurrent_statics: int = Field(
+        2,
+        ge=1,
+        le=64,
+        description="/v1/statics requests computed at once (each keeps a core of the server "
+        "busy); more are refused with 503",
+    )
     api_docs: bool = Field(
         True,
         description="serve the API's description, /openapi.json, and its documentation page, "
@@ -130,6 +147,45 @@ class Settings(BaseSettings):
                 "whitespace (unset the variable to run without authentication)"
             )
         return value
+
+    @field_validator("database_url")
+    @classmethod
+    def _usable_database_url(cls, value: str | None) -> str | None:
+        """A URL SQLAlchemy cannot read, or whose database or driver it cannot load, is
+        refused here, naming this setting, not with a traceback when the server opens it.
+        The reason never quotes the URL (it may hold a password). Empty: the default."""
+        if not value:
+            return value
+        try:
+            dialect = make_url(value).get_dialect()
+        except (ArgumentError, NoSuchModuleError, ValueError) as error:
+            raise ValueError(
+                f"not a database URL SQLAlchemy can use ({error}); e.g. {DATABASE_URL_EXAMPLE}"
+            ) from None
+        if dialect.is_async:
+            raise ValueError(
+                f"{dialect.driver} is an asyncio driver, the service needs a synchronous one; "
+                f"e.g. {DATABASE_URL_EXAMPLE}"
+            )
+        try:
+            dialect.import_dbapi()
+        except ImportError as error:
+            raise ValueError(
+                f"the {dialect.name} driver {dialect.driver} is not installed ({error})"
+            ) from None
+        return value
+
+    @field_validator("upload_devices")
+    @classmethod
+    def _device_patterns(cls, patterns: tuple[str, ...]) -> tuple[str, ...]:
+        """Every pattern compiles (as :func:`service.uploads.refusal` uses it): a broken one
+        refuses the start instead of failing every upload."""
+        for pattern in patterns:
+            try:
+                re.compile(pattern, re.ASCII)
+            except re.error as error:
+                raise ValueError(f"{pattern!r} is not a regular expression: {error}") from None
+        return patterns
 
     @field_validator("executor")
     @classmethod
@@ -161,6 +217,14 @@ class Settings(BaseSettings):
         """``allowed_hosts`` as a Host header writes them: an IPv6 address in brackets
         (``::1`` -> ``[::1]``, what Starlette's TrustedHostMiddleware compares)."""
         return [_as_in_host_header(host) for host in self.allowed_hosts]
+
+    @property
+    def health_host_patterns(self) -> list[str]:
+        """The Host header values /healthz answers: ``allowed_hosts`` and this machine's own
+        names, so that a health check run beside the server (the Docker image's) passes
+        whatever ``allowed_hosts`` says (:class:`service.middleware.TrustedHosts`)."""
+        loopback = [_as_in_host_header(host) for host in LOOPBACK_HOSTS]
+        return [*self.host_patterns, *(h for h in loopback if h not in self.host_patterns)]
 
     @property
     def tasks_dir(self) -> Path:

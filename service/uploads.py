@@ -26,9 +26,7 @@ At most ``FLYCRANE_MAX_CONCURRENT_UPLOADS`` uploads run at once, on threads of t
 from __future__ import annotations
 
 import ipaddress
-import math
 import re
-import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -41,13 +39,9 @@ from missions.mavlink.policy import RetryPolicy
 from missions.mavlink.transport import ConnectionSpec, VehicleLink, parse_connection
 from missions.mavlink.upload import Verification, upload_and_verify
 from service.artifacts import stored_missions
-from service.errors import (
-    SameVehicleError,
-    ServiceBusyError,
-    TaskNotFoundError,
-    UploadNotAllowedError,
-)
+from service.errors import SameVehicleError, TaskNotFoundError, UploadNotAllowedError
 from service.jobs import JobManager
+from service.limits import Slots
 from service.schemas import ParameterDifference, UploadPublic, VehicleUpload
 from service.settings import Settings
 from service.storage import TaskStore
@@ -271,7 +265,7 @@ def upload_task(
 
 
 class UploadRunner:
-    """Runs uploads on threads of its own, at most ``limit`` at once.
+    """Runs uploads on threads of their own, at most ``limit`` at once.
 
     An upload waits for vehicles for up to ``FLYCRANE_UPLOAD_TIMEOUT``: on the API's request
     threads, sixty of them took every thread and /healthz waited 3.7 s. Beyond the limit an
@@ -280,8 +274,7 @@ class UploadRunner:
 
     def __init__(self, limit: int, retry_after: float) -> None:
         self.limit = limit
-        self.retry_after = str(math.ceil(retry_after))
-        self._slots = threading.BoundedSemaphore(limit)
+        self._slots = Slots(limit, "uploads", retry_after)
         self._pool = ThreadPoolExecutor(max_workers=limit, thread_name_prefix="upload-task")
 
     def submit(self, work: Callable[[], T]) -> Future[T]:
@@ -292,17 +285,13 @@ class UploadRunner:
         ServiceBusyError
             If ``limit`` uploads are running.
         """
-        if not self._slots.acquire(blocking=False):
-            raise ServiceBusyError(
-                f"{self.limit} uploads are running; retry later",
-                headers={"Retry-After": self.retry_after},
-            )
+        self._slots.take()
         try:
             future = self._pool.submit(work)
         except BaseException:
-            self._slots.release()
+            self._slots.give_back()
             raise
-        future.add_done_callback(lambda _: self._slots.release())
+        future.add_done_callback(lambda _: self._slots.give_back())
         return future
 
     def stop(self) -> None:

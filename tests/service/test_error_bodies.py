@@ -9,11 +9,13 @@ field checks after it (InputError) and an invalid start (InvalidConfigurationErr
 from __future__ import annotations
 
 import json
+import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
 from flycrane.world.scene import load_scene
-from service.errors import MAX_LISTED_PROBLEMS
+from service.errors import MAX_LISTED_PROBLEMS, READ_PROBLEMS
 from tests.service.conftest import running_service
 
 RESCUE = load_scene("rescue")[0].model_dump(mode="json")
@@ -87,3 +89,68 @@ def test_many_field_problems_are_counted_not_all_listed(client):
 def test_a_few_problems_are_all_listed(client):
     detail = refused(client, task_with([sphere(k, -1.0) for k in range(3)]), bounded=False)
     assert [d["loc"][3] for d in detail] == [0, 1, 2]
+
+
+# -- a body of very many wrong items (under the size limit) ----------------------------------
+#
+# Every entry pydantic reports used to be made readable (and encoded) before the first twenty
+# were kept, on the event loop: 450 000 wrong obstacles held every request up.
+
+
+def test_half_a_million_wrong_items_are_counted_not_each_made_readable(client, monkeypatch):
+    import service.errors
+
+    made_readable: list[int] = []
+    real = service.errors.readable_errors
+
+    def counting(errors):
+        errors = list(errors)
+        made_readable.append(len(errors))
+        return real(errors)
+
+    monkeypatch.setattr(service.errors, "readable_errors", counting)
+    wrong = 450_000
+    raw = json.dumps(
+        {"scene": {**RESCUE, "obstacles": [1] * wrong}}, separators=(",", ":")
+    ).encode()
+    assert len(raw) < 1_000_000  # under the default body limit: refused by its schema
+    detail = refused(client, raw)
+    assert len(detail) == MAX_LISTED_PROBLEMS + 1
+    assert detail[0]["loc"] == ["body", "scene", "obstacles", 0]
+    assert detail[MAX_LISTED_PROBLEMS - 1]["loc"][-1] == MAX_LISTED_PROBLEMS - 1
+    assert_counted(detail[-1], MAX_LISTED_PROBLEMS, wrong)
+    assert made_readable and max(made_readable) <= READ_PROBLEMS, made_readable
+
+
+@pytest.mark.parametrize(
+    ("path", "body", "location"),
+    [
+        ("/v1/tasks", {"scene": {**RESCUE, "obstacles": [1, 1, 1]}}, ["body", "scene"]),
+        ("/v1/statics", {"q": [["x"] * 9] * 3}, ["body", "q"]),
+        ("/v1/tasks/nope/upload", {"vehicles": ["udp:127.0.0.1:1"]}, ["body", "vehicles"]),
+    ],
+)
+def test_a_body_is_refused_off_the_event_loop(client, monkeypatch, path, body, location):
+    """The 422 is made while /healthz is answered: the refusal is held where it is made until
+    the health check is back (if it were made on the event loop, the health check could not
+    be answered, and the hold would end by its guard, not by the release)."""
+    import service.errors
+
+    entered, release, released = threading.Event(), threading.Event(), []
+    real = service.errors.readable_errors
+
+    def held(errors):
+        entered.set()
+        released.append(release.wait(60))
+        return real(errors)
+
+    monkeypatch.setattr(service.errors, "readable_errors", held)
+    with ThreadPoolExecutor(1) as sender:
+        answer = sender.submit(client.post, path, json=body)
+        assert entered.wait(60)
+        health = client.get("/healthz")
+        release.set()
+        response = answer.result()
+    assert released == [True] and health.status_code == 200, health.text
+    assert response.status_code == 422, response.text
+    assert response.json()["detail"][0]["loc"][: len(location)] == location

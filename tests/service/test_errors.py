@@ -187,3 +187,52 @@ def test_the_executor_is_local_or_a_whole_scheduler_address(tmp_path, executor, 
             Settings(data_dir=tmp_path, executor=executor)
         return
     assert Settings(data_dir=tmp_path, executor=executor).dask_scheduler == scheduler
+
+
+@pytest.mark.parametrize(
+    ("patterns", "why"),
+    [(["["], "'[' is not a regular expression: unterminated character set"),
+     ([r"/dev/ttyUSB[0-9]+", "(?P<x"], "'(?P<x' is not a regular expression")],
+)  # fmt: skip
+def test_an_upload_device_pattern_that_does_not_compile_is_refused(tmp_path, patterns, why):
+    """It was accepted, and every upload then answered 500 (re.error)."""
+    from pydantic import ValidationError
+
+    from service.settings import Settings
+
+    with pytest.raises(ValidationError) as info:
+        Settings(data_dir=tmp_path, upload_devices=patterns)
+    (problem,) = info.value.errors()
+    assert problem["loc"] == ("upload_devices",) and why in problem["msg"], problem
+
+
+@pytest.mark.parametrize(
+    ("url", "why"),
+    [("bogus://", "Can't load plugin: sqlalchemy.dialects:bogus"),
+     ("not a url", "Could not parse SQLAlchemy URL"),
+     ("postgresql://user:hunter2@host:port/db", "not a database URL SQLAlchemy can use"),
+     ("postgresql+asyncpg://user:hunter2@host/db", "asyncpg is an asyncio driver")],
+)  # fmt: skip
+def test_a_database_url_sqlalchemy_cannot_use_is_refused_naming_the_setting(tmp_path, url, why):
+    """It ended the start in a traceback (NoSuchModuleError, ArgumentError); the refusal
+    never quotes the URL, which may hold a password."""
+    from pydantic import ValidationError
+
+    from service.settings import Settings
+
+    with pytest.raises(ValidationError) as info:
+        Settings(data_dir=tmp_path, database_url=url)
+    (problem,) = info.value.errors()
+    assert problem["loc"] == ("database_url",) and why in problem["msg"], problem
+    assert "hunter2" not in str(info.value)
+
+
+@pytest.mark.parametrize("url", [None, "", "sqlite:///elsewhere.db", "postgresql://:x@/"])
+def test_database_urls_sqlalchemy_reads_are_accepted(tmp_path, url):
+    """Whether the database answers is checked at start (service/startup.py); an empty URL
+    is the default, SQLite in the data directory."""
+    from service.settings import Settings
+
+    settings = Settings(data_dir=tmp_path, database_url=url)
+    default = f"sqlite:///{tmp_path / 'flycrane.db'}"
+    assert settings.resolved_database_url == (url or default)

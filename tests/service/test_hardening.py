@@ -143,6 +143,33 @@ def test_the_offset_of_a_listing_is_bounded(client):
     assert response.status_code == 422 and response.json()["detail"][0]["loc"][-1] == "offset"
 
 
+def test_an_empty_listing_parameter_is_as_if_left_out(client):
+    """``GET /v1/tasks?status=`` (as the README's table writes the parameters) lists every
+    task, as if the parameter were left out; a status that is none is still refused, naming
+    the parameter and the statuses there are."""
+    from service.storage import TaskStatus
+
+    store = client.app.state.service.store
+    for status in (TaskStatus.FAILED, TaskStatus.CANCELLED):
+        record = store.create({"name": f"listed {status.value}"})
+        store.finish(record.id, record.attempt, status, None, "x")
+    everything, _ = store.list(limit=500)
+    for query in ("status=", "status=&offset=&limit=", "offset=&limit="):
+        page = client.get(f"/v1/tasks?{query}")
+        assert page.status_code == 200, (query, page.text)
+        listed = page.json()
+        assert listed["total"] == len(everything) >= 2, query
+        assert (listed["offset"], listed["limit"]) == (0, 50), query
+        assert [t["id"] for t in listed["items"]] == [r.id for r in everything[:50]], query
+    failed = client.get("/v1/tasks?status=failed").json()["items"]
+    assert failed and all(t["status"] == "failed" for t in failed)
+    wrong = client.get("/v1/tasks?status=finished")
+    assert wrong.status_code == 422
+    (problem,) = wrong.json()["detail"]
+    assert problem["loc"] == ["query", "status"]
+    assert all(f"'{status.value}'" in problem["msg"] for status in TaskStatus), problem
+
+
 def test_a_chunked_body_over_the_limit_is_413(client):
     def chunks():
         for _ in range(30):
@@ -266,6 +293,23 @@ def test_requests_for_other_hosts_are_refused(client):
     response = client.get("/v1/tasks", headers={"host": "attacker.example"})
     assert response.status_code == 400
     assert client.get("/v1/tasks", headers={"host": f"{TEST_HOST}:8000"}).status_code == 200
+
+
+@pytest.mark.parametrize("loopback", ["127.0.0.1:8000", "localhost", "[::1]:8000"])
+def test_the_health_check_answers_on_loopback_whatever_the_allowed_hosts(tmp_path, loopback):
+    """Behind a proxy (ALLOWED_HOSTS names the public host only) the Docker image's health
+    check, on http://127.0.0.1:8000/healthz, got 400 "Invalid host header": the container
+    was never healthy. /healthz answers this machine's names too; nothing else does."""
+    with running_service(tmp_path, allowed_hosts=("crane.example.org",)) as client:
+        assert client.get("/healthz", headers={"host": loopback}).status_code == 200
+        assert client.get("/healthz", headers={"host": "crane.example.org"}).status_code == 200
+        for path in ("/v1/tasks", "/metrics", "/openapi.json"):
+            refused = client.get(path, headers={"host": loopback})
+            assert refused.status_code == 400 and refused.text == "Invalid host header", path
+        for host in ("evil.example", "127.0.0.1.evil.example", "localhost.evil.example"):
+            assert client.get("/healthz", headers={"host": host}).status_code == 400, host
+        # only the health check: the same path in another method is refused by its host
+        assert client.post("/healthz", json={}, headers={"host": loopback}).status_code == 400
 
 
 def test_returned_urls_use_the_public_url_behind_a_proxy(tmp_path):
@@ -412,6 +456,79 @@ def test_concurrent_submissions_never_exceed_the_queue(tmp_path, monkeypatch):
         codes = sorted(a.status_code for a in answers)
         assert codes == [202, 202] + [503] * 6, codes
         assert all(a.headers["retry-after"] == "10" for a in answers if a.status_code == 503)
+
+
+# -- what-ifs bounded; /healthz answered while every request thread is busy ------------------
+
+
+def _fill_the_request_threads(client) -> tuple[int, int]:
+    """Make the request threads (anyio's default limiter) exactly as many as are borrowed:
+    one more request needing a thread waits. Returns (borrowed, total before)."""
+    import anyio.to_thread
+
+    def fill() -> tuple[int, int]:
+        limiter = anyio.to_thread.current_default_thread_limiter()
+        borrowed, total = int(limiter.borrowed_tokens), int(limiter.total_tokens)
+        limiter.total_tokens = borrowed
+        return borrowed, total
+
+    return client.portal.call(fill)
+
+
+def _restore_the_request_threads(client, total: int) -> None:
+    import anyio.to_thread
+
+    def restore() -> None:
+        anyio.to_thread.current_default_thread_limiter().total_tokens = total
+
+    client.portal.call(restore)
+
+
+def test_what_ifs_beyond_the_limit_are_503_and_health_answers_with_every_thread_busy(
+    tmp_path, monkeypatch
+):
+    """Enough what-ifs at once took every request thread, and /healthz waited for one. Now
+    at most MAX_CONCURRENT_STATICS are computed (held here until the test releases them),
+    the others are refused at once with 503; and with every request thread busy, /healthz
+    still answers while a route that needs such a thread waits."""
+    import service.api.routes.statics as statics_route
+
+    computing, release, released = threading.Semaphore(0), threading.Event(), []
+    real = statics_route.evaluate_statics
+
+    def held(system, q):
+        computing.release()
+        released.append(release.wait(60))
+        return real(system, q)
+
+    monkeypatch.setattr(statics_route, "evaluate_statics", held)
+    body = {"q": [[0, 0, 5, 0, 0, 0, 1, 1, 1]]}
+    with (
+        running_service(tmp_path, max_concurrent_statics=2) as client,
+        ThreadPoolExecutor(3) as senders,
+    ):
+        running = [senders.submit(client.post, "/v1/statics", json=body) for _ in range(2)]
+        try:
+            assert computing.acquire(timeout=60) and computing.acquire(timeout=60)
+            borrowed, total = _fill_the_request_threads(client)
+            try:
+                assert borrowed >= 2
+                starved = senders.submit(client.get, "/v1/presets/systems")
+                refused = client.post("/v1/statics", json=body)
+                health = client.get("/healthz")
+                assert not starved.done()  # it needs a request thread: none is free
+            finally:
+                _restore_the_request_threads(client, total)
+        finally:
+            release.set()
+        answers = [r.result() for r in running]
+        assert starved.result().status_code == 200
+    assert refused.status_code == 503, refused.text
+    assert refused.headers["retry-after"] == "1"
+    assert refused.json()["detail"] == "2 statics requests are running; retry later"
+    assert health.status_code == 200 and health.json()["status"] == "ok", health.text
+    assert [a.status_code for a in answers] == [200, 200] and released == [True, True]
+    assert answers[0].json()["results"][0]["feasible"]
 
 
 def test_serve_refuses_an_open_address_without_a_token(tmp_path, capsys):

@@ -1,12 +1,16 @@
 """``flycrane serve`` as a user runs it: a real uvicorn process on a loopback address.
 
 Issue 22, item 13: on ``--host ::1`` every request was answered 400 "Invalid host header"
-(the default allowed hosts hold ``::1``, Starlette compares ``[::1]``).
+(the default allowed hosts hold ``::1``, Starlette compares ``[::1]``). Behind the README's
+proxy setup, the Docker image's health check got that answer too. Settings the server cannot
+work with are refused at start, in one line naming the setting.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -47,15 +51,19 @@ def ipv6_loopback() -> bool:
 
 
 @contextmanager
-def served(data_dir: Path, host: str, port: int) -> Iterator[httpx.Client]:
-    """``flycrane serve`` on ``host``: a client once it answers HTTP at all (whatever the
-    status); stopped by its session's id at the end, pass or fail."""
+def served(
+    data_dir: Path, host: str, port: int, *args: str, env: dict[str, str] | None = None
+) -> Iterator[httpx.Client]:
+    """``flycrane serve`` on ``host`` (more arguments and ``FLYCRANE_*`` variables in
+    ``args`` and ``env``): a client once it answers HTTP at all (whatever the status);
+    stopped by its session's id at the end, pass or fail."""
     log = data_dir.parent / f"{data_dir.name}.log"
+    command = serve_command(data_dir, "--host", host, "--port", str(port), "--workers", "1")
     with log.open("wb") as out:
         process = subprocess.Popen(
-            serve_command(data_dir, "--host", host, "--port", str(port), "--workers", "1"),
+            [*command, *args],
             cwd=ROOT,
-            env=clean_environment(),
+            env={**clean_environment(), **(env or {})},
             stdout=out,
             stderr=subprocess.STDOUT,
             start_new_session=True,
@@ -106,4 +114,57 @@ def test_a_port_no_socket_can_take_is_refused_with_its_name(port, why, tmp_path)
     )  # fmt: skip
     assert done.returncode == 2
     assert f"argument --port: {why}" in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "data").exists()
+
+
+def dockerfile_health_check(port: int) -> list[str]:
+    """The Dockerfile's HEALTHCHECK command, on ``port`` instead of the image's 8000, run by
+    this interpreter."""
+    text = (ROOT / "docker" / "Dockerfile").read_text(encoding="utf-8")
+    found = re.search(r"^HEALTHCHECK .*\\\n\s*CMD (\[.*\])$", text, re.MULTILINE)
+    assert found, "no HEALTHCHECK ... CMD [...] in docker/Dockerfile"
+    command = json.loads(found.group(1))
+    assert command[0] == "python" and "http://127.0.0.1:8000/healthz" in command[-1], command
+    return [sys.executable, *(part.replace(":8000/", f":{port}/") for part in command[1:])]
+
+
+def test_the_docker_health_check_passes_behind_the_readmes_proxy_setup(tmp_path):
+    """README "Security": ALLOWED_HOSTS names the public host, ``--proxy-headers``; the image's
+    health check asks http://127.0.0.1:8000/healthz and got 400, so the container was never
+    healthy. Other routes still answer only the public name."""
+    port = free_port(socket.AF_INET, "127.0.0.1")
+    proxied = {"FLYCRANE_ALLOWED_HOSTS": '["crane.example.org"]'}
+    with served(tmp_path / "data", "127.0.0.1", port, "--proxy-headers", env=proxied) as client:
+        check = subprocess.run(
+            dockerfile_health_check(port), capture_output=True, text=True, timeout=60
+        )
+        assert check.returncode == 0, check.stderr[-3000:]
+        assert client.get("/v1/tasks").status_code == 400  # addressed to 127.0.0.1
+        public = {"host": "crane.example.org"}
+        assert client.get("/v1/tasks", headers=public).status_code == 200
+        assert client.get("/healthz", headers={"host": "evil.example"}).status_code == 400
+
+
+@pytest.mark.parametrize(
+    ("variable", "value", "why"),
+    [
+        ("FLYCRANE_UPLOAD_DEVICES", '["/dev/ttyUSB[0-9]+", "["]',
+         "'[' is not a regular expression: unterminated character set"),
+        ("FLYCRANE_DATABASE_URL", "bogus://", "sqlalchemy.dialects:bogus"),
+        ("FLYCRANE_DATABASE_URL", "not a url", "Could not parse SQLAlchemy URL"),
+        ("FLYCRANE_DATABASE_URL", "postgresql://h:port/db", "not a database URL"),
+    ],
+)  # fmt: skip
+def test_a_setting_the_server_cannot_use_is_refused_in_one_line(tmp_path, variable, value, why):
+    """Before, a broken UPLOAD_DEVICES pattern started, then every upload was a 500
+    (re.error); a DATABASE_URL SQLAlchemy cannot load ended the start in a traceback."""
+    done = subprocess.run(
+        serve_command(tmp_path / "data"),
+        capture_output=True, text=True, timeout=120,
+        env={**clean_environment(), variable: value},
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr[-3000:]
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"flycrane serve: {variable}: "), lines
+    assert why in lines[0] and "Traceback" not in done.stderr
     assert not (tmp_path / "data").exists()

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import asyncio
+
 from fastapi import APIRouter, Response
 from fastapi.responses import JSONResponse
 from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
 from sqlalchemy import text
 from sqlalchemy.exc import SQLAlchemyError
 
-from service.deps import StateDep
+from service.deps import ServiceState, StateDep
 from service.schemas import Health
 
 router = APIRouter(tags=["health"])
@@ -19,10 +21,16 @@ router = APIRouter(tags=["health"])
     response_model=Health,
     responses={503: {"model": Health, "description": "the service cannot run tasks now"}},
 )
-def healthz(state: StateDep) -> Health | JSONResponse:
+async def healthz(state: StateDep) -> Health | JSONResponse:
     """Whether the service can take and run tasks: its database answers and records what
     tasks do (a full disk refuses it), and its worker pool works (a pool broken by a dead
     worker is replaced; one that cannot be is reported)."""
+    # On a thread of its own (the database is asked), not on one of the request threads:
+    # it answers while busy requests hold all of them.
+    return await asyncio.wrap_future(state.health.submit(_health, state))
+
+
+def _health(state: ServiceState) -> Health | JSONResponse:
     problems = []
     if not state.jobs.healthy:
         problems.append("no usable worker pool")

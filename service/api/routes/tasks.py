@@ -2,8 +2,9 @@
 
 Handlers are plain functions: FastAPI runs them in its thread pool, so a slow or locked
 database holds one thread, never the event loop (a locked SQLite answers 503 after
-``database_busy_timeout``). Uploads, which wait for vehicles, run on threads of their own
-instead (:class:`service.uploads.UploadRunner`). What they do lives in
+``database_busy_timeout``), and a task's body is validated there, not by FastAPI on the
+event loop (:data:`service.schemas.TaskBody`). Uploads, which wait for vehicles, run on
+threads of their own instead (:class:`service.uploads.UploadRunner`). What they do lives in
 :mod:`service.artifacts` and :mod:`service.uploads`.
 """
 
@@ -11,9 +12,12 @@ from __future__ import annotations
 
 import asyncio
 from functools import partial
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Query
+from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, JSONResponse
+from pydantic import BeforeValidator
 
 from flycrane.errors import FieldProblem, InputError
 from missions.task.resolve import resolve_task
@@ -22,7 +26,16 @@ from service import uploads
 from service.artifacts import MEDIA_TYPES, artifact_path, bundle_file, media_type
 from service.deps import READ, WRITE, BaseUrl, ServiceState, StateDep
 from service.errors import TaskNotFoundError, error_responses
-from service.schemas import TaskAccepted, TaskPage, TaskPublic, UploadCreate, UploadPublic
+from service.schemas import (
+    TaskAccepted,
+    TaskBody,
+    TaskPage,
+    TaskPublic,
+    UploadBody,
+    UploadCreate,
+    UploadPublic,
+    validated,
+)
 from service.storage import MAX_OFFSET, TaskRecord, TaskStatus
 
 router = APIRouter(prefix="/v1/tasks", tags=["tasks"])
@@ -62,9 +75,10 @@ def _check_limits(task: TaskSpec, state: ServiceState) -> None:
     dependencies=WRITE,
     responses=error_responses(401, 413, 503),
 )
-def create_task(task: TaskSpec, state: StateDep, base: BaseUrl) -> TaskAccepted:
+def create_task(body: TaskBody, state: StateDep, base: BaseUrl) -> TaskAccepted:
     """Validate a task (start and goal included), store it, queue it; 202 with its URL."""
     try:
+        task = validated(TaskSpec, body)
         _check_limits(task, state)
         resolve_task(task)
     except Exception:
@@ -81,6 +95,12 @@ def create_task(task: TaskSpec, state: StateDep, base: BaseUrl) -> TaskAccepted:
     return TaskAccepted(id=record.id, url=f"{base}v1/tasks/{record.id}", status=record.status)
 
 
+def _blank_means(default: Any) -> BeforeValidator:
+    """An empty query parameter (``?status=``, as the README's table writes them) is read as
+    if it were left out: ``default``."""
+    return BeforeValidator(lambda value: default if value == "" else value)
+
+
 @router.get(
     "",
     response_model=TaskPage,
@@ -90,11 +110,12 @@ def create_task(task: TaskSpec, state: StateDep, base: BaseUrl) -> TaskAccepted:
 def list_tasks(
     state: StateDep,
     base: BaseUrl,
-    status: TaskStatus | None = None,
-    offset: int = Query(0, ge=0, le=MAX_OFFSET),
-    limit: int = Query(50, ge=1, le=500),
+    status: Annotated[TaskStatus | None, _blank_means(None)] = None,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET), _blank_means(0)] = 0,
+    limit: Annotated[int, Query(ge=1, le=500), _blank_means(50)] = 50,
 ) -> TaskPage:
-    """Tasks, newest first, optionally of one status."""
+    """Tasks, newest first, optionally of one status (an empty parameter is as if left
+    out: any status, the first page of 50)."""
     records, total = state.store.list(status, offset, limit)
     return TaskPage(
         items=[TaskPublic.of(r, base) for r in records], total=total, offset=offset, limit=limit
@@ -170,7 +191,7 @@ def get_bundle(task_id: str, state: StateDep) -> FileResponse:
     },
 )
 async def upload_task(
-    task_id: str, body: UploadCreate, state: StateDep
+    task_id: str, raw: UploadBody, state: StateDep
 ) -> UploadPublic | JSONResponse:
     """Upload the three missions (drone k to ``vehicles[k-1]``), verify by read-back, read
     the parameters of ``drone{k}.parm`` back from each vehicle, record the outcome per
@@ -180,6 +201,7 @@ async def upload_task(
     addresses reach the same vehicle (nothing is sent). It runs off the request threads,
     at most ``FLYCRANE_MAX_CONCURRENT_UPLOADS`` at once (503 beyond), each vehicle's upload
     within ``FLYCRANE_UPLOAD_TIMEOUT``."""
+    body = await run_in_threadpool(validated, UploadCreate, raw)
     work = partial(
         uploads.upload_task, task_id, body.vehicles, state.settings, state.jobs, state.store
     )
