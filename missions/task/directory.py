@@ -354,12 +354,11 @@ class TaskDirectory:
         self.record(SUMMARY_FILE)
         (staging / STAGED_SUMMARY).write_text(dumps(outcome.as_dict()), encoding="utf-8")
         (self.path / SUMMARY_FILE).unlink(missing_ok=True)
-        written = set(self.artifacts.values()) - {SUMMARY_FILE}
-        for name in OWN_FILES:
-            if name not in written:
-                (self.path / name).unlink(missing_ok=True)
-            elif staging != self.path:
-                os.replace(staging / name, self.path / name)
+        written = [name for name in self.artifacts.values() if name != SUMMARY_FILE]
+        for name in set(OWN_FILES) - set(written):
+            (self.path / name).unlink(missing_ok=True)
+        for name in written if staging != self.path else ():
+            os.replace(staging / name, self.path / name)
         os.replace(staging / STAGED_SUMMARY, self.path / SUMMARY_FILE)
         if staging != self.path:
             staging.rmdir()
