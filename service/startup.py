@@ -90,11 +90,15 @@ def check_database(engine: Engine) -> None:
     except (SQLAlchemyError, sqlite3.Error) as error:
         reason = database_reason(error) if isinstance(error, SQLAlchemyError) else str(error)
         corrupt = "malformed" in reason or "not a database" in reason
-        advice = (
-            "it is corrupt; restore it from a backup, or move it away to start with an empty one"
-            if corrupt
-            else "check that it is writable and that its disk has space"
-        )
+        if corrupt:
+            advice = (
+                "it is corrupt; restore it from a backup, or move it away to start with an "
+                "empty one"
+            )
+        elif engine.dialect.name == "sqlite":
+            advice = "check that it is writable and that its disk has space"
+        else:  # a server: unreachable, refusing the login, or out of space
+            advice = "check that its server runs and can be reached, the login, and its space"
         raise StartupError(
             _one_line(f"cannot start: the database {where} cannot be used: {reason} ({advice})")
         ) from None

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import pytest
 from fastapi.testclient import TestClient
-from sqlalchemy import event
+from sqlalchemy import create_engine, event
 from sqlalchemy.engine import Engine
 
 import missions.task.pipeline
@@ -40,6 +40,7 @@ from service.app import create_app
 from service.errors import StartupError
 from service.jobs import JobManager
 from service.settings import Settings
+from service.startup import check_database
 from service.storage import TaskStatus
 from tests.service.conftest import TEST_HOST, wait_status
 from tests.service.test_serve import ROOT, clean_environment, free_port, serve_command
@@ -241,6 +242,20 @@ def test_a_corrupt_database_is_refused_at_start_through_the_lifespan(tmp_path, h
         start_in_process(tmp_path)
     message = str(refused.value)
     assert "\n" not in message and str(database) in message and says in message, message
+
+
+def test_a_database_server_that_cannot_be_reached_is_named_with_server_advice():
+    """Not the advice for a file (writable, disk space), and never the password."""
+    with socket.socket() as probe:  # a loopback port nothing listens on
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    engine = create_engine(f"postgresql+psycopg://crane:hunter2@127.0.0.1:{port}/tasks")
+    with pytest.raises(StartupError) as refused:
+        check_database(engine)
+    message = str(refused.value)
+    assert f"127.0.0.1:{port}/tasks cannot be used" in message, message
+    assert "its server runs and can be reached" in message and "writable" not in message
+    assert "hunter2" not in message and "\n" not in message
 
 
 def test_a_sound_database_starts(tmp_path):
