@@ -325,8 +325,14 @@ class TaskDirectory:
     # writing ---------------------------------------------------------------------------
 
     def write_text(self, name: str, text: str, artifact: str | None = None) -> None:
-        """Write ``name`` and record it as the artifact ``artifact`` (default: its name)."""
-        self.file(name).write_text(text, encoding="utf-8")
+        """Write ``name`` and record it as the artifact ``artifact`` (default: its name). A
+        write that fails says which file (a full disk fails the write, not the open, and
+        its error names none)."""
+        path = self.file(name)
+        try:
+            path.write_text(text, encoding="utf-8")
+        except OSError as error:
+            raise OSError(error.errno, error.strerror, str(path)) from error
         self.record(name, artifact)
 
     def record(self, name: str, artifact: str | None = None) -> None:

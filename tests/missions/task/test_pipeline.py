@@ -7,8 +7,11 @@ start and goal, and their speed items against the limits the plan solved.
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -104,6 +107,20 @@ def test_an_interrupted_run_leaves_the_last_finished_run_whole(rescue, tmp_path,
     assert outcome.status == "done", outcome.reason
     assert TaskDirectory(tmp_path).task().name == "other"
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in done.iterdir())
+
+
+def test_a_write_that_fails_names_its_file(tmp_path, monkeypatch):
+    """A full disk fails the write, not the open, with an error that names no file."""
+
+    def full(self: Path, *_: object, **__: object) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    directory = TaskDirectory(tmp_path).create()
+    monkeypatch.setattr(Path, "write_text", full)
+    with pytest.raises(OSError) as failed:
+        directory.write_task(TASK)
+    assert failed.value.errno == errno.ENOSPC
+    assert str(failed.value).endswith(f"{tmp_path / '.partial' / 'task.json'}'")
 
 
 def test_the_task_json_a_run_writes_plans_the_same_missions_again(rescue, tmp_path):
