@@ -18,7 +18,7 @@ from typing import TypeVar
 from missions.export.items import DroneMission
 from missions.task.directory import DRONES, TaskDirectory, TaskDirectoryError, mission_file
 from missions.task.spec import TaskSpec
-from missions.viewer import ViewUnavailableError, standalone_page, view_document
+from missions.viewer import PAGE_FILE, ViewUnavailableError, standalone_page, view_document
 from service.errors import (
     ArtifactNotFoundError,
     ArtifactUnreadableError,
@@ -184,6 +184,6 @@ def bundle_file(jobs: JobManager, record: TaskRecord) -> Path:
             for name, source in paths.items():
                 archive.write(source, arcname=name)
             if page is not None:  # the viewer, standalone (docs/viewer.md)
-                archive.writestr("view.html", page)
+                archive.writestr(PAGE_FILE, page)
 
     return _derived(jobs, record, BUNDLE_FILE, make)

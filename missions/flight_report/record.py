@@ -10,12 +10,13 @@ from pathlib import Path
 from typing import Any
 
 from flycrane.errors import FieldProblem, InputError
+from missions.viewer.flown import FLOWN_FILE
 
 FLIGHT_FILE = "flight.json"
 #: An executor's record beside it (:class:`missions.execution.record.ExecutionRecord`).
 EXECUTION_FILE = "execution.json"
-#: What the flight report writes, and the viewer's flown-path file.
-REPORT_FILE, PLOT_FILE, FLOWN_FILE = "report.json", "report.png", "flown.json"
+#: What the flight report writes (and the viewer's :data:`FLOWN_FILE`).
+REPORT_FILE, PLOT_FILE = "report.json", "report.png"
 MCAP_FILE = "flight.mcap"
 #: Every file of a flight's directory: its record, the vehicles' logs, its report.
 FLIGHT_FILES = (

@@ -8,10 +8,11 @@ from __future__ import annotations
 
 from missions.viewer.document import VIEW_FORMAT, ViewUnavailableError, view_document
 from missions.viewer.flown import FLOWN_FILE, FlownTrack, FlownTrackError, load_flown
-from missions.viewer.page import served_page, standalone_page, static_file
+from missions.viewer.page import PAGE_FILE, served_page, standalone_page, static_file
 
 __all__ = [
     "FLOWN_FILE",
+    "PAGE_FILE",
     "VIEW_FORMAT",
     "FlownTrack",
     "FlownTrackError",

@@ -199,6 +199,7 @@ def view_document(
     title: str = "",
     rate: float = 20.0,
     max_frames: int = 3000,
+    flown_dir: Path | None = None,
 ) -> dict[str, Any]:
     """The viewer's JSON document of a planned task (module docstring, docs/viewer.md).
 
@@ -213,6 +214,8 @@ def view_document(
     rate : float
         Frames per second of track shown [Hz]; lowered so that a track has at most about
         ``max_frames`` frames (the waypoints' samples are always frames).
+    flown_dir : path, optional
+        Where a flight report left ``flown.json`` (default: ``task_dir``).
 
     Raises
     ------
@@ -231,7 +234,7 @@ def view_document(
         raise ViewUnavailableError(f"{error} (the task was not planned to the end)") from None
     notes = []
     try:
-        flown = load_flown(task_dir)
+        flown = load_flown(task_dir if flown_dir is None else flown_dir)
     except FlownTrackError as error:
         flown = None
         notes.append(f"flown data not shown: {error}")

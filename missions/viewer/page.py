@@ -25,6 +25,8 @@ from typing import Any
 
 from flycrane.errors import FlyCraneError
 
+#: The standalone page's name, in a task's bundle and where ``flycrane view`` writes it.
+PAGE_FILE = "view.html"
 #: The viewer's own files and the vendored libraries (vendor/README.md).
 STATIC_DIR = Path(__file__).parent / "static"
 
