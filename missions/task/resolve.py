@@ -183,14 +183,15 @@ def resolve_task(
             clear_end, validity=checkers.planning, real=checkers.real, what=what,
             approach=approach, hold=hold,
         )  # fmt: skip
+        raised: dict[bytes, tuple[NDArray[np.float64], VerticalLeg | None]] = {}
         if isinstance(given, PlatformPose):
             q = configuration_from_pose(
                 problem.space, checkers.real, given.position, given.orientation, what,
-                accept=partial(_raises_clear, raise_end),
+                accept=partial(_raises_clear, raise_end, raised),
             )  # fmt: skip
         else:
             q = np.array(default if given is None else given, dtype=float)
-        planned, leg = raise_end(q)
+        planned, leg = raised.get(q.tobytes()) or raise_end(q)
         ends.append(planned)
         legs.append(leg)
     least = least_duration(problem.system, np.stack(ends), task.mission)
@@ -208,10 +209,15 @@ def resolve_task(
     )  # fmt: skip
 
 
-def _raises_clear(raise_end: Callable[[NDArray[np.float64]], object], q: NDArray) -> bool:
-    """Whether the end ``q`` can be planned from (or to), raised clear where it needs."""
+def _raises_clear(
+    raise_end: Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], VerticalLeg | None]],
+    raised: dict[bytes, tuple[NDArray[np.float64], VerticalLeg | None]],
+    q: NDArray[np.float64],
+) -> bool:
+    """Whether the end ``q`` can be planned from (or to), raised clear where it needs; the
+    raised end goes into ``raised`` under ``q``'s bytes."""
     try:
-        raise_end(q)
+        raised[q.tobytes()] = raise_end(q)
     except InvalidConfigurationError:
         return False
     return True
