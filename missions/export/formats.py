@@ -17,6 +17,7 @@ printed with 8 decimals: they are exact multiples of 1e-7 degree already.
 from __future__ import annotations
 
 import json
+import math
 from typing import Any
 
 from missions.export.items import DroneMission, MavFrame, MissionItem
@@ -120,14 +121,28 @@ def mission_json(mission: DroneMission) -> dict[str, Any]:
 
 
 def mission_from_json(data: dict[str, Any]) -> DroneMission:
-    """Inverse of :func:`mission_json`."""
-    return DroneMission(
-        drone=int(data["drone"]), items=tuple(MissionItem(**item) for item in data["items"])
-    )
+    """Inverse of :func:`mission_json`; ValueError where the items are not a mission's
+    (none, or their seq not 0, 1, 2, ... in order)."""
+    items = tuple(MissionItem(**item) for item in data["items"])
+    if not items or [item.seq for item in items] != list(range(len(items))):
+        raise ValueError("items: a mission's items have seq 0, 1, 2, ... in order")
+    return DroneMission(drone=int(data["drone"]), items=items)
 
 
 def dumps(document: dict[str, Any]) -> str:
     return json.dumps(document, indent=2) + "\n"
+
+
+def finite(document: Any) -> Any:
+    """``document`` with every float that is not finite as None: JSON has no infinity and
+    no NaN (RFC 8259), and strict readers (JavaScript's ``JSON.parse``) refuse them."""
+    if isinstance(document, float):
+        return document if math.isfinite(document) else None
+    if isinstance(document, dict):
+        return {key: finite(value) for key, value in document.items()}
+    if isinstance(document, list | tuple):
+        return [finite(value) for value in document]
+    return document
 
 
 def mission_files(mission: DroneMission, max_speed: float) -> dict[str, str]:

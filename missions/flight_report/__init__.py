@@ -17,13 +17,17 @@ recorded by a ground station); :func:`write_report` saves ``report.json``, ``rep
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from flycrane.errors import FieldProblem, InputError
 from missions.execution.record import ExecutionRecord
-from missions.export.formats import dumps
+from missions.export.formats import dumps, finite
 from missions.flight_report.alignment import (
     AlignmentError,
     Releases,
@@ -42,8 +46,12 @@ from missions.flight_report.record import (
     FlightRecord,
 )
 from missions.flight_report.report import FlightReport, flight_report
+from missions.flight_report.timing import flown_at
 from missions.flight_report.vehicle_log import VehicleLog, read_vehicle_log
 from missions.task.directory import TaskDirectory
+
+#: How much better another order of the logs must fit the formation to be refused.
+ORDER_FIT = 3.0
 
 
 @dataclass(frozen=True)
@@ -129,11 +137,47 @@ def report_tlogs(task_dir: Path, tlogs: Sequence[Path]) -> tuple[FlightReport, P
     vehicles = [
         read_vehicle_log(path, f"drone{k + 1}", origin, height) for k, path in enumerate(tlogs)
     ]
+    _distinct(tlogs)
     try:
         releases = releases_on_common_clock(vehicles, release_seq=plan.release.release_seq)
     except AlignmentError:  # no SYSTEM_TIME in the logs
         releases = releases_from_logs(vehicles, plan.release.release_seq)
+    _in_order(plan, vehicles, releases)
     return flight_report(plan, vehicles, releases), plan
+
+
+def _distinct(tlogs: Sequence[Path]) -> None:
+    """Refuses one log given for two drones (their sizes and first megabyte equal)."""
+    heads = []
+    for path in tlogs:
+        with path.open("rb") as file:
+            heads.append((path.stat().st_size, file.read(1 << 20)))
+    for i, j in itertools.combinations(range(len(tlogs)), 2):
+        if heads[i] == heads[j]:
+            raise InputError([FieldProblem("tlogs", (
+                f"{tlogs[i]} and {tlogs[j]} are one log: give drone 1, 2 and 3's"))])  # fmt: skip
+
+
+def _in_order(plan: PlannedFlight, vehicles: Sequence[VehicleLog], releases: Releases) -> None:
+    """Refuses logs given in another order than drone 1, 2, 3: at the release the drones
+    hold the plan's formation, whatever common offset their positions have, and another
+    order of the logs fits it at least :data:`ORDER_FIT` times better."""
+    held = flown_at([v.estimated for v in vehicles], releases, np.zeros(1))[0]
+    planned = plan.drones_at(np.zeros(1))[0]
+
+    def misfit(order: tuple[int, ...]) -> float:
+        drones = held[list(order)]
+        shape = (drones - drones.mean(axis=0)) - (planned - planned.mean(axis=0))
+        return float(np.linalg.norm(shape, axis=-1).max())
+
+    given = tuple(range(len(vehicles)))
+    best = min(itertools.permutations(given), key=misfit)
+    if best != given and misfit(best) * ORDER_FIT < misfit(given):
+        order = ", ".join(f"{'1st 2nd 3rd'.split()[k]}" for k in best)
+        raise InputError([FieldProblem("tlogs", (
+            f"at the release the logs hold the formation {misfit(given):.2f} m from the "
+            f"plan's, the {order} given {misfit(best):.2f} m: give drone 1, 2 and 3's logs, "
+            "in that order"))])  # fmt: skip
 
 
 def write_report(
@@ -151,6 +195,6 @@ def write_report(
         "time": report.series["time"]["mission"],
         "drones_enu": report.series[source]["drones_enu"],
     }
-    (out_dir / FLOWN_FILE).write_text(dumps(flown), encoding="utf-8")
+    (out_dir / FLOWN_FILE).write_text(dumps(finite(flown)), encoding="utf-8")
     write_flight_mcap(report, plan, out_dir / MCAP_FILE)
     return {name: out_dir / name for name in (REPORT_FILE, PLOT_FILE, FLOWN_FILE, MCAP_FILE)}

@@ -47,9 +47,18 @@ from numpy.typing import NDArray
 from flycrane.model.cost import cost_from_report
 from flycrane.model.direct_kinematics import configuration_from_drone_positions
 from flycrane.model.statics import evaluate_statics
+from missions.export.formats import finite
 from missions.flight_report.alignment import Releases
 from missions.flight_report.planned_flight import PlannedFlight
-from missions.flight_report.timing import REPORT_RATE_HZ, Timing, flight_timing, flown_at, p95
+from missions.flight_report.timing import (
+    END_MARGIN_S,
+    REPORT_RATE_HZ,
+    Timing,
+    flight_timing,
+    flown_at,
+    motion_end,
+    p95,
+)
 from missions.flight_report.vehicle_log import PositionSeries, VehicleLog
 from missions.position_error import position_error_model
 from missions.trajectory.motion import forward_progress
@@ -138,7 +147,10 @@ class FlightReport:
     series: dict[str, dict[str, list[Any]]] = field(default_factory=dict, repr=False)
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """Every figure, JSON's way: a figure that is not finite (the cost of a load no
+        cable can hold) is None."""
+        document: dict[str, Any] = finite(asdict(self))
+        return document
 
 
 def _pairwise(drones: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -288,6 +300,25 @@ def _team_stop(
     )
 
 
+def _short_logs(
+    plan: PlannedFlight,
+    vehicles: Sequence[VehicleLog],
+    releases: Releases,
+    judge_until: float | None,
+) -> list[tuple[str, float, float]]:
+    """The drones whose logs end before the flight they must show: (name, where the log
+    ends, where it had to reach) [s of mission time]. A flight must be recorded to its
+    planned end of motion, a stopped one to :data:`END_MARGIN_S` before ``judge_until``
+    (the drones at rest by then)."""
+    needed = motion_end(plan) if judge_until is None else judge_until - END_MARGIN_S
+    short = []
+    for k, vehicle in enumerate(vehicles):
+        end = float(releases.mission_time(k, vehicle.estimated.time[-1:])[0])
+        if end < needed:
+            short.append((vehicle.name, end, needed))
+    return short
+
+
 def flight_report(
     plan: PlannedFlight,
     vehicles: Sequence[VehicleLog],
@@ -304,6 +335,9 @@ def flight_report(
     judge_until = plan.duration if judge_all else None
     if stop is not None and not judge_all:
         judge_until = stop[0] + judge_after_stop
+    short = _short_logs(plan, vehicles, releases, judge_until)
+    if short:  # judged while every drone was recorded: a log's last fix is not its flight
+        judge_until = min(end for _, end, _ in short)
     timing, t, progress = flight_timing(plan, vehicles, releases, judge_until)
     estimated, estimated_series = _source_figures(
         "estimated", plan, [v.estimated for v in vehicles], releases, t
@@ -323,6 +357,11 @@ def flight_report(
             f"release spread {releases.spread:.3f} s beyond the plan's {tolerance:.3f} s"
         )
     reasons += [f"parameter: {p}" for p in parameter_differences]
+    reasons += [
+        f"{name}'s log ends at {end:.2f} s of mission time, before {needed:.2f} s: the flight "
+        "after it is not judged"
+        for name, end, needed in short
+    ]
     warnings = []
     model = position_error_model(plan.task.mission.position_error)
     east, north, up = judged.common_offset_at_rest
