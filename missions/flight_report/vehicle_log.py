@@ -24,6 +24,7 @@ that order is;
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +39,8 @@ from missions.autopilots.location import VehicleFrame
 from missions.geodesy import DEGREE_UNIT, enu_from_geodetic
 from missions.options import GeodeticOrigin
 
+#: What pymavlink's parser raises on bytes that are not MAVLink where it expects them.
+PARSE_ERRORS = (AttributeError, IndexError, KeyError, TypeError, ValueError, struct.error)
 #: Messages that carry the vehicle's own time.
 TIMED = frozenset({"GLOBAL_POSITION_INT", "SYSTEM_TIME", "ATTITUDE", "LOCAL_POSITION_NED"})
 
@@ -124,6 +127,12 @@ def _local_track(
     return PositionSeries(array[:, 0], frame.task_position(array[:, 2:]), array[:, 1])
 
 
+def _unreadable(name: str, path: Path, error: Exception) -> InputError:
+    return InputError(
+        [FieldProblem(name, f"{path} is not a readable tlog: {type(error).__name__}: {error}")]
+    )
+
+
 def read_vehicle_log(
     path: Path, name: str, origin: GeodeticOrigin, home_height: float | None = None
 ) -> VehicleLog:
@@ -147,6 +156,8 @@ def read_vehicle_log(
         log = mavutil.mavlink_connection(str(path), dialect="ardupilotmega", robust_parsing=True)
     except OSError as error:
         raise InputError([FieldProblem(name, f"cannot read {path}: {error}")]) from None
+    except PARSE_ERRORS as error:
+        raise _unreadable(name, path, error) from None
     estimated: list[tuple[float, float, int, int, float]] = []
     local: list[tuple[float, float, float, float, float]] = []
     ekf_origin: tuple[int, int, int] | None = None
@@ -192,6 +203,8 @@ def read_vehicle_log(
             elif kind == "MISSION_ITEM_REACHED":
                 reached.append([np.nan, stamp, msg.seq])
                 waiting.append(reached[-1])
+    except PARSE_ERRORS as error:
+        raise _unreadable(name, path, error) from None
     finally:
         log.close()
     # rows after the last timed message have no time: dropped by the finite filters

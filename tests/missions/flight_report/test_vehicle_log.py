@@ -80,3 +80,13 @@ def test_only_a_regular_file_is_read_as_a_log(tmp_path, monkeypatch, name, reaso
     monkeypatch.chdir(tmp_path)
     with pytest.raises(InputError, match=rf"drone1: {name}: {reason}"):
         read_vehicle_log(Path(name), "drone1", ORIGIN, HOME_HEIGHT)
+
+
+def test_bytes_the_mavlink_parser_chokes_on_are_named(tmp_path):
+    """18 bytes of a SITL tlog whose every 97th byte was replaced (a new user's corrupt
+    file): pymavlink raises AttributeError while it opens them, which went out as a
+    traceback."""
+    path = tmp_path / "drone1.tlog"
+    path.write_bytes(bytes.fromhex("000661733f3c9296fd190000170101160000"))
+    with pytest.raises(InputError, match=f"drone1: {path} is not a readable tlog"):
+        read_vehicle_log(path, "drone1", ORIGIN)
