@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from flycrane.errors import FieldProblem, InputError
+from missions.task.directory import DRONES
 from missions.viewer.flown import FLOWN_FILE
 
 FLIGHT_FILE = "flight.json"
@@ -87,7 +88,7 @@ class FlightRecord:
         path = flight_dir / FLIGHT_FILE
         try:
             data = json.loads(path.read_text(encoding="utf-8"))
-            return cls(
+            record = cls(
                 task_dir=str(data["task_dir"]),
                 speedup=float(data["speedup"]),
                 hold_seq=int(data["hold_seq"]),
@@ -102,6 +103,10 @@ class FlightRecord:
                 refused=tuple(data.get("refused", ())),
                 faults=tuple(data.get("faults", ())),
             )
+            for name, listed in (("vehicles", record.vehicles), ("end_seq", record.end_seq)):
+                if len(listed) != len(DRONES):
+                    raise ValueError(f"{name}: {len(listed)} listed, a flight has {len(DRONES)}")
+            return record
         except KeyError as error:
             reason = f"{path}: no field {error} (not a flight record of this version)"
             raise InputError([FieldProblem("flight", reason)]) from None

@@ -151,3 +151,19 @@ def test_a_flight_record_missing_a_field_says_which(tmp_path):
     (tmp_path / "flight.json").write_text("{}", encoding="utf-8")
     with pytest.raises(InputError, match="no field 'task_dir'"):
         FlightRecord.read(tmp_path)
+
+
+@pytest.mark.parametrize("count", [2, 4])
+def test_a_flight_record_of_other_than_three_vehicles_is_refused(tmp_path, count):
+    """Two or four vehicles listed went on to a broadcasting error or an IndexError."""
+    vehicles = [VehicleRecord(f"drone{k}", k, f"drone{k}.tlog", 1.0, 0.0, 0.0) for k in (1, 2, 3)]
+    record = FlightRecord(
+        task_dir="task", speedup=1.0, hold_seq=2, release_seq=3, end_seq=(9, 9, 9),
+        planned_duration_s=10.0, vehicles=tuple(vehicles), parameters={}, release_delays=(),
+        parameter_differences=(),
+    )  # fmt: skip
+    document = record.as_dict()
+    document["vehicles"] = (document["vehicles"] * 2)[:count]
+    (tmp_path / "flight.json").write_text(json.dumps(document), encoding="utf-8")
+    with pytest.raises(InputError, match=f"vehicles: {count} listed, a flight has 3"):
+        FlightRecord.read(tmp_path)
