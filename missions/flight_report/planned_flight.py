@@ -128,7 +128,7 @@ class PlannedFlight:
         task = directory.task()
         assert isinstance(task.scene, SceneSpec)  # written out whole (task.json)
         problem = PlanningProblem.from_scene(
-            task.scene, None if isinstance(task.system, str) else task.system
+            task.scene, None if isinstance(task.system, str) else task.system, Path(task_dir)
         )
         tracks = directory.tracks()
         q = tracks.dense_configurations

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
@@ -40,6 +41,7 @@ from numpy.typing import NDArray
 
 from flycrane.errors import FlyCraneError, InputError
 from flycrane.planning.metrics import PathMetrics
+from flycrane.world.scene import Mesh, SceneSpec, Shape
 from missions.autopilots.spline import SpeedLimits
 from missions.export.formats import dumps, mission_from_json
 from missions.export.items import DroneMission
@@ -63,6 +65,9 @@ STAGING_DIR = ".partial"
 #: The summary's name until it is moved into place, the run's last step.
 STAGED_SUMMARY = ".summary.json"
 MCAP_FILE = "mission.mcap"
+#: The task's mesh files, copied in (:meth:`TaskDirectory.write_task`): mesh1.stl, ...
+MESH_STEM = "mesh"
+MESH_FILE = re.compile(rf"{MESH_STEM}[0-9]+(\.[a-z0-9]+)?")
 PROFILE_FILE = "profile.png"
 DRONES = (1, 2, 3)
 #: The files of each drone's mission, in the order they are written.
@@ -273,7 +278,8 @@ class Tracks:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Tracks:
-        return cls(
+        """Raises ValueError where the arrays' shapes do not fit together (an edited file)."""
+        tracks = cls(
             time=np.array(data["time"], dtype=float),
             configurations=np.array(data["configurations"], dtype=float),
             drones_enu=np.array(data["drones_enu"], dtype=float),
@@ -291,6 +297,38 @@ class Tracks:
             lift_off=VerticalLeg.from_dict(data["lift_off"]) if data["lift_off"] else None,
             set_down=SetDown.from_dict(data["set_down"]) if data["set_down"] else None,
         )
+        tracks._check_shapes()
+        return tracks
+
+    def _check_shapes(self) -> None:
+        w, n = len(self.time), len(self.dense_time)
+        shapes: dict[str, tuple[NDArray[np.float64], tuple[int, ...]]] = {
+            "time": (self.time, (w,)),
+            "configurations": (self.configurations, (w, 9)),
+            "drones_enu": (self.drones_enu, (w, 3, 3)),
+            "drones_stored_enu": (self.drones_stored_enu, (w, 3, 3)),
+            "drones_wgs84": (self.drones_wgs84, (w, 3, 3)),
+            "dense.time": (self.dense_time, (n,)),
+            "dense.configurations": (self.dense_configurations, (n, 9)),
+        }
+        for name, motion in (("motion", self.motion), ("vehicle_motion", self.vehicle_motion)):
+            m = len(motion.time)
+            shapes[f"{name}.time"] = (motion.time, (m,))
+            shapes[f"{name}.drones_enu"] = (motion.drones, (m, 3, 3))
+        for name, (array, shape) in shapes.items():
+            if len(array) < 2:
+                raise ValueError(f"{name} has {len(array)} rows, fewer than 2")
+            if array.shape != shape:
+                raise ValueError(f"{name} has shape {array.shape}, not {shape}")
+            if not np.all(np.isfinite(array)):
+                raise ValueError(f"{name} holds a value that is not a finite number")
+        for name, time in (("time", self.time), ("dense.time", self.dense_time),
+                           ("motion.time", self.motion.time),
+                           ("vehicle_motion.time", self.vehicle_motion.time)):  # fmt: skip
+            if np.any(np.diff(time) < 0):
+                raise ValueError(f"{name} decreases")
+        if len(self.speed_limits) != len(DRONES):
+            raise ValueError(f"speed_limits has {len(self.speed_limits)} rows, not {len(DRONES)}")
 
 
 class TaskDirectory:
@@ -339,8 +377,37 @@ class TaskDirectory:
         """Record a file written by someone else (an MCAP log, a plot) as an artifact."""
         self.artifacts[artifact or name] = name
 
-    def write_task(self, task: TaskSpec) -> None:
-        self.write_text(TASK_FILE, dumps(task.model_dump(mode="json")))
+    def write_task(self, task: TaskSpec, base_dir: Path | None = None) -> None:
+        """task.json, the task written out whole: the mesh files its scene names (relative
+        to ``base_dir``) are copied in as ``mesh{k}.{suffix}`` and named so, so that the
+        directory is planned again, judged and viewed wherever it is (its readers take
+        the directory as the task's base)."""
+        scene = task.scene
+        if isinstance(scene, SceneSpec):
+            copied = 0
+
+            def own(shape: Shape) -> Shape:
+                nonlocal copied
+                if not isinstance(shape, Mesh) or shape.file is None:
+                    return shape
+                source = Path(shape.file) if base_dir is None else base_dir / shape.file
+                copied += 1
+                name = f"{MESH_STEM}{copied}{source.suffix.lower()}"
+                try:
+                    shutil.copyfile(source, self.file(name))
+                except OSError as error:
+                    raise OSError(error.errno, error.strerror, str(source)) from error
+                self.record(name)
+                return shape.model_copy(update={"file": name})
+
+            payload = scene.payload.model_copy(
+                update={"shapes": tuple(own(s) for s in scene.payload.shapes)}
+            )
+            scene = scene.model_copy(
+                update={"obstacles": tuple(own(s) for s in scene.obstacles), "payload": payload}
+            )
+        written = task.model_copy(update={"scene": scene})
+        self.write_text(TASK_FILE, dumps(written.model_dump(mode="json")))
 
     def write_path(self, configurations: NDArray[np.float64], raw: NDArray[np.float64]) -> None:
         document = {"configurations": configurations.tolist(), "raw_path": raw.tolist()}
@@ -361,7 +428,8 @@ class TaskDirectory:
         (staging / STAGED_SUMMARY).write_text(dumps(outcome.as_dict()), encoding="utf-8")
         (self.path / SUMMARY_FILE).unlink(missing_ok=True)
         written = [name for name in self.artifacts.values() if name != SUMMARY_FILE]
-        for name in set(OWN_FILES) - set(written):
+        meshes = {p.name for p in self.path.glob(f"{MESH_STEM}*") if MESH_FILE.fullmatch(p.name)}
+        for name in (set(OWN_FILES) | meshes) - set(written):
             (self.path / name).unlink(missing_ok=True)
         for name in written if staging != self.path else ():
             os.replace(staging / name, self.path / name)

@@ -122,7 +122,7 @@ def run_task(
             outcome = TaskOutcome(**{**outcome.__dict__, "metrics": planned.metrics})
             used = resolved.self_contained()
             directory.write_task(used.model_copy(update={"planner": used.planner.model_copy(
-                update={"seed": seed})}))  # fmt: skip
+                update={"seed": seed})}), resolved.scene_dir)  # fmt: skip
             directory.write_path(planned.path, result.path)
             limits = limits or PhaseLimits.starting_now(should_stop, task.planner.time_budget)
             try:

@@ -71,6 +71,7 @@ class ResolvedTask:
     position_error: PositionErrorModel  #: ``task.mission.position_error``, resolved
     lift_off: VerticalLeg | None = None
     set_down: VerticalLeg | None = None
+    scene_dir: Path | None = None  #: what the scene's mesh files are relative to
 
     @cached_property
     def robust(self) -> RobustClearance:
@@ -205,7 +206,7 @@ def resolve_task(
         )])  # fmt: skip
     return ResolvedTask(
         task, problem, algorithm, checkers, ends[0], ends[1], model, lift_off=legs[0],
-        set_down=legs[1],
+        set_down=legs[1], scene_dir=scene_dir,
     )  # fmt: skip
 
 

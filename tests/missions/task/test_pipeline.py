@@ -309,6 +309,37 @@ def test_the_rescue_with_its_buildings_as_meshes_plans_with_the_default_mission(
     assert set(mission.set_down.leg.surfaces) == {"west building", "east building"}
 
 
+def test_a_task_of_mesh_files_plans_again_from_its_directory_alone(tmp_path, monkeypatch):
+    """The mesh files a scene names are copied into the task's directory and task.json
+    names the copies: planned again from elsewhere it gives the same missions (task.json
+    named the files relative to the task file's folder, and nothing could read them)."""
+    site = tmp_path / "site"
+    site.mkdir()
+    scene = load_scene("rescue")[0].model_dump(mode="json")
+    for k, obstacle in enumerate(scene["obstacles"]):
+        mesh = box_mesh(obstacle["name"], obstacle["center"], obstacle["size"])
+        lines = [f"v {x} {y} {z}" for x, y, z in mesh["vertices"]]
+        lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in mesh["faces"]]
+        (site / f"building{k}.OBJ").write_text("\n".join(lines) + "\n")
+        scene["obstacles"][k] = {**mesh, "file": f"building{k}.OBJ", "vertices": None,
+                                 "faces": None}  # fmt: skip
+    (site / "task.json").write_text(json.dumps({"scene": scene, "planner": {"seed": 0}}))
+    assert main(["plan", str(site / "task.json"), "--out", str(tmp_path / "out")]) == 0
+    out = tmp_path / "out"
+    written = TaskDirectory(out).task().scene.obstacles
+    assert [o.file for o in written] == ["mesh1.obj", "mesh2.obj"]
+    for k in (0, 1):
+        assert (out / f"mesh{k + 1}.obj").read_bytes() == (site / f"building{k}.OBJ").read_bytes()
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(["plan", "../out/task.json", "--out", "again"]) == 0
+    for name in ("drone1.waypoints", "drone2.waypoints", "drone3.waypoints"):
+        assert (elsewhere / "again" / name).read_bytes() == (out / name).read_bytes(), name
+    assert main(["plan", "--out", str(out)]) == 0  # the default Rescue, of boxes
+    assert not list(out.glob("mesh*"))
+
+
 def test_bitrrt_asked_for_with_a_mesh_payload_is_refused_naming_the_field():
     """bitrrt checks a payload of primitive shapes only: asked for with a mesh payload it is
     refused at once; the default falls back to T-RRT (flycrane/planning/planners.py)."""
