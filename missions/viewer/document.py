@@ -175,6 +175,8 @@ def _facts(summary: TaskOutcome, scene: SceneSpec, flown: FlownTrack | None) -> 
     """What the page's header lists: label and preformatted value."""
     mission, metrics = summary.mission, summary.metrics
     seconds = summary.planner_statistics.get("time", 0)
+    # the plan's: the position-error model's clearance where it is more than the scene's
+    clearance = mission.obstacle_clearance if mission else scene.collision.obstacle_clearance
     facts = [
         ("scene", scene.name),
         ("planner", f"{summary.planner_status or '?'} in {seconds:.2f} s"),
@@ -185,7 +187,7 @@ def _facts(summary: TaskOutcome, scene: SceneSpec, flown: FlownTrack | None) -> 
             else "? waypoints, 0.00 s",
         ),
         ("max cost", f"{metrics.max_cost if metrics else float('nan'):.4g}"),
-        ("obstacle clearance", f"{scene.collision.obstacle_clearance:g} m"),
+        ("obstacle clearance", f"{clearance:g} m"),
     ]
     if flown is not None:
         facts.append(("flown", f"{flown.source}, {flown.time[-1] - flown.time[0]:.2f} s"))

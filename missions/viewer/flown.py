@@ -31,6 +31,7 @@ from flycrane.errors import FieldProblem, InputError
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.direct_kinematics import configuration_from_drone_positions
 from flycrane.model.system_spec import problems_from_validation_error
+from flycrane.quantities import MAX_LENGTH
 
 #: The file a flight report leaves beside a task's artifacts.
 FLOWN_FILE = "flown.json"
@@ -59,6 +60,8 @@ class FlownTrack(BaseModel):
             )
         if not np.all(np.isfinite(time)) or not np.all(np.isfinite(drones.astype(float))):
             raise ValueError("time and drones_enu must be finite numbers")
+        if np.any(np.abs(drones.astype(float)) > MAX_LENGTH):
+            raise ValueError(f"drones_enu must be within {MAX_LENGTH:g} m of the task's origin")
         backwards = np.flatnonzero(np.diff(time) < 0)
         if len(backwards):
             k = int(backwards[0]) + 1

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from flycrane.cli import main
-from missions.flight_report.record import FlightRecord
+from missions.flight_report.record import FlightRecord, VehicleRecord
 from missions.task.pipeline import run_task
 from missions.viewer import FLOWN_FILE, PAGE_FILE
 from tests.missions.viewer.test_document import TASK
@@ -28,10 +28,13 @@ def _flight(directory, task_dir, tracks, shift):
     """A flight's directory as a SITL flight's report leaves it: its record names the task;
     its drones flew the plan moved by ``shift``."""
     directory.mkdir()
+    vehicles = tuple(
+        VehicleRecord(f"drone{k}", k, f"drone{k}.tlog", 10.0, 0.0, 0.0, ()) for k in (1, 2, 3)
+    )
     FlightRecord(
         task_dir=str(task_dir), speedup=2.0, hold_seq=2, release_seq=3, end_seq=(9, 9, 9),
-        planned_duration_s=tracks["time"][-1], vehicles=(), parameters={}, release_delays=(),
-        parameter_differences=(),
+        planned_duration_s=tracks["time"][-1], vehicles=vehicles, parameters={},
+        release_delays=(), parameter_differences=(),
     ).write(directory)  # fmt: skip
     flown = {
         "source": "flight-true",

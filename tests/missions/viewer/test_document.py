@@ -225,6 +225,7 @@ def test_flown_drones_no_cables_can_join_leave_the_platform_out(planned, tmp_pat
         ({"source": "x", "time": [0, 2, 1], "drones_enu": [[[0, 0, 5]] * 3] * 3}, "decrease"),
         ({"source": "x", "time": [0, 1], "drones_enu": [[[0, 0, 5]] * 3]}, "shape"),
         ({"time": [0, 1], "drones_enu": [[[0, 0, 5]] * 3] * 2}, "source"),
+        ({"source": "x", "time": [0, 1], "drones_enu": [[[0, 0, 1e300]] * 3] * 2}, "within"),
     ],
 )
 def test_bad_flown_file_is_named_in_the_notes(planned, tmp_path, flown, reason):
@@ -241,3 +242,15 @@ def test_bad_flown_file_is_named_in_the_notes(planned, tmp_path, flown, reason):
 def test_a_task_without_tracks_cannot_be_viewed(tmp_path):
     with pytest.raises(ViewUnavailableError, match=r"tracks\.json"):
         view_document(TASK, tmp_path)
+
+
+def test_the_clearance_shown_is_the_plan_s(planned, tmp_path):
+    """A plan keeps the position-error model's clearance where it is more than its scene's
+    (0 here); the page said the scene's."""
+    out, _, _ = planned
+    shutil.copytree(out, tmp_path, dirs_exist_ok=True)
+    summary = json.loads((tmp_path / "summary.json").read_text(encoding="utf-8"))
+    summary["mission"]["obstacle_clearance"] = 0.08
+    (tmp_path / "summary.json").write_text(json.dumps(summary), encoding="utf-8")
+    facts = {f["label"]: f["value"] for f in view_document(TASK, tmp_path)["facts"]}
+    assert facts["obstacle clearance"] == "0.08 m"
