@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from bench_input import INPUT_ERRORS
 
 from missions.flight_report.leg_times import flight_record
 from missions.flight_report.record import FlightRecord
@@ -47,7 +48,7 @@ def main() -> int:
     for flight in args.flights:
         try:
             planned, flown, travel = legs(flight)
-        except (OSError, KeyError, ValueError) as error:
+        except INPUT_ERRORS as error:
             print(f"{flight}: skipped ({error})", file=sys.stderr)
             continue
         error = flown - planned

@@ -16,13 +16,12 @@ import argparse
 import tempfile
 import time
 import tracemalloc
-from pathlib import Path
 
 import numpy as np
 
 from flycrane.planning.planners import plan
 from missions.task.build import build
-from missions.task.directory import TaskDirectory
+from missions.task.directory import TRACKS_FILE, TaskDirectory
 from missions.task.limits import MissionFailure
 from missions.task.resolve import resolve_task
 from missions.task.spec import TaskSpec
@@ -69,7 +68,8 @@ def measure(length: float) -> str:
         write_files(directory, resolved, planned, built)
         write_time = time.perf_counter() - clock
         _, write_peak = tracemalloc.get_traced_memory()
-        tracks = (Path(scratch) / "tracks.json").stat().st_size
+        # write_files leaves the files staged (.partial/): only the run's summary moves them
+        tracks = directory.file(TRACKS_FILE).stat().st_size
     tracemalloc.stop()
     return (
         f"{length:7.0f} m {built.summary.duration:7.0f} s | build {build_time:6.1f} s "

@@ -40,6 +40,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.cold_runs < 1:
         parser.error("--cold-runs must be at least 1: the warm runs use the first one's cache")
+    if args.runs < 1:
+        parser.error("--runs must be at least 1: the warm runs' median is the figure")
+    if args.baseline and not (args.baseline / "flycrane").is_dir():
+        parser.error(f"--baseline {args.baseline}: not the root of a checkout of this project")
     trees = {"this": HERE} | ({"baseline": args.baseline.resolve()} if args.baseline else {})
     times: dict[str, dict[str, list[float]]] = {"cold": {}, "warm": {}}
     with tempfile.TemporaryDirectory(prefix="flycrane-plan-bench-") as scratch:

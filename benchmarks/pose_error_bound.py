@@ -4,16 +4,15 @@ against the errors flown on ArduCopter SITL.
     .venv/bin/python benchmarks/pose_error_bound.py FLIGHT_DIR... [--model sitl]
 
 Each FLIGHT_DIR is a ``flycrane fly-sitl --mode stream`` output (execution.json and
-report.json) whose task directory is ``FLIGHT_DIR/../plan`` (the layout of
-benchmarks/execution_modes.py). Per flight, at every sample of the report (10 Hz, true
-positions): the planned configuration (the drones' trajectories at the group clock's plan
-time, solved by the direct kinematics), the flown one (the report's, rebuilt from SIM_STATE),
-how far each payload corner moved between them, and the bound the position-error model
-gives at the planned configuration (common part, and each drone's own part as two thirds
-of the model's relative bound: three errors pairwise within r are each within 2r/3 of
-their mean). Prints the bound's least, median and largest value against the fixed
-clearance the plan keeps, the flown displacement's median and largest, and how many
-samples the bound covers.
+report.json); its task directory is the one its flight.json names. Per flight, at every
+sample of the report (10 Hz, true positions): the planned configuration (the drones'
+trajectories at the group clock's plan time, solved by the direct kinematics), the flown one
+(the report's, rebuilt from SIM_STATE), how far each payload corner moved between them, and
+the bound the position-error model gives at the planned configuration (common part, and each
+drone's own part as two thirds of the model's relative bound: three errors pairwise within r
+are each within 2r/3 of their mean). Prints the bound's least, median and largest value
+against the fixed clearance the plan keeps, the flown displacement's median and largest, and
+how many samples the bound covers.
 
 With ``--near D``, the bound on how far the drones' errors can close the gap to the
 nearest obstacle instead, at the samples whose planned configuration is within D [m] of
@@ -31,9 +30,12 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from bench_input import exit_if_unreadable
 
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.direct_kinematics import configuration_from_drone_positions
@@ -46,8 +48,14 @@ from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.world.bodies import box_corners, payload_bodies
 from flycrane.world.scene import Box
 from missions.execution.record import ExecutionRecord
+from missions.flight_report.record import FlightRecord
 from missions.position_error import PRESETS
 from missions.task.directory import TaskDirectory
+
+
+def task_directory(flight: Path) -> TaskDirectory:
+    """The task the flight flew: the directory its flight.json names."""
+    return TaskDirectory(FlightRecord.read(flight).task_dir)
 
 
 def payload_points(task_dir: Path) -> np.ndarray:
@@ -65,7 +73,7 @@ def planned_and_flown(flight: Path) -> tuple[CableSystem, np.ndarray, np.ndarray
     """The system, the report's times, and at each the planned configuration (the drones'
     trajectories at the group clock's plan time, by the direct kinematics) and the flown
     one (the report's, from SIM_STATE)."""
-    directory = TaskDirectory(flight.parent / "plan")
+    directory = task_directory(flight)
     system = CableSystem.from_spec(directory.task().system)  # type: ignore[arg-type]
     clock = ExecutionRecord.read(flight / "execution.json").clock()
     series = json.loads((flight / "report.json").read_text())["series"]
@@ -79,9 +87,8 @@ def planned_and_flown(flight: Path) -> tuple[CableSystem, np.ndarray, np.ndarray
 
 
 def measure(flight: Path, model_name: str) -> dict:
-    task_dir = flight.parent / "plan"
     system, _, planned, flown = planned_and_flown(flight)
-    points = payload_points(task_dir)
+    points = payload_points(task_directory(flight).path)
     rotation = matrix_from_tilt_torsion(planned[:, 3:6])
     planned_points = planned[:, None, :3] + np.einsum("nab,pb->npa", rotation, points)
     rotation = matrix_from_tilt_torsion(flown[:, 3:6])
@@ -104,7 +111,7 @@ def measure(flight: Path, model_name: str) -> dict:
 def measure_near(flight: Path, model_name: str, near: float) -> dict:
     """The bound along the nearest obstacle's direction at the samples within ``near``
     (:class:`~flycrane.planning.robust_clearance.RobustClearance`)."""
-    task = TaskDirectory(flight.parent / "plan").task()  # self-contained: specs written out
+    task = task_directory(flight).task()  # self-contained: specs written out
     real = PlanningProblem.from_scene(task.scene, task.system).validity.with_clearance(0.0)  # type: ignore[arg-type]
     _, _, planned, flown = planned_and_flown(flight)
     model = PRESETS[model_name]
@@ -153,10 +160,18 @@ def main() -> None:
     parser.add_argument("--near", type=float, help="[m] the nearest obstacle's direction")
     parser.add_argument("--statics", action="store_true", help="the margins' bound instead")
     args = parser.parse_args()
+
+    def each(measure: Callable[..., dict], *options: Any) -> Iterator[dict]:
+        """``measure`` of each flight; a flight that cannot be read ends the run (exit 2)."""
+        for flight in args.flights:
+            with exit_if_unreadable(parser, flight):
+                row = measure(flight, *options)
+            yield row
+
     if args.statics:
         print("flight: samples | bound median/max N | fall median/max N | worst fall/bound | "
               "covered | least margin planned/robust/flown N")  # fmt: skip
-        for r in (measure_statics(flight, args.model) for flight in args.flights):
+        for r in each(measure_statics, args.model):
             b, f = r["bound"], r["fall"]
             print(
                 f"{r['flight']}: {r['samples']} | {b[0]:.3f}/{b[1]:.3f} | {f[0]:.3f}/{f[1]:.3f}"
@@ -166,14 +181,14 @@ def main() -> None:
         return
     if args.near is not None:
         print("flight: samples | bound min/median/max cm | at the least gap | lost max | covered")
-        for r in (measure_near(flight, args.model, args.near) for flight in args.flights):
+        for r in each(measure_near, args.model, args.near):
             b = r["bound"] * 100
             print(
                 f"{r['flight']}: {r['samples']} | {b[0]:.1f}/{b[1]:.1f}/{b[2]:.1f} | "
                 f"{100 * r['at_least_gap']:.1f} | {100 * r['lost']:.1f} | {r['covered']:.0%}"
             )
         return
-    rows = [measure(flight, args.model) for flight in args.flights]
+    rows = list(each(measure, args.model))
     print("flight: samples | bound min/median/max cm | flown median/max cm | covered | fixed cm")
     for r in rows:
         b, f = r["bound"] * 100, r["flown"] * 100

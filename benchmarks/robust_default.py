@@ -19,6 +19,7 @@ import json
 import statistics
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -59,10 +60,19 @@ def run(scene: str, seed: int, position_error: str, robust: bool, out: Path) -> 
     }
 
 
-def interval(ratios: list[float], rng: np.random.Generator) -> tuple[float, float]:
-    """95 % percentile bootstrap interval of the median of ``ratios`` (scipy.stats)."""
+def interval(ratios: list[float], rng: np.random.Generator) -> str:
+    """95 % percentile bootstrap interval of the median of ``ratios`` (scipy.stats), or
+    n/a with fewer than two (one seed: nothing to resample)."""
+    if len(ratios) < 2:
+        return "n/a"
     found = bootstrap((ratios,), np.median, method="percentile", n_resamples=2000, rng=rng)
-    return float(found.confidence_interval.low), float(found.confidence_interval.high)
+    return f"{found.confidence_interval.low:.2f}, {found.confidence_interval.high:.2f}"
+
+
+def figure(values: list[float], spec: str, summary: Callable = statistics.median) -> str:
+    """``summary`` of ``values`` formatted by ``spec``, or n/a when there are none (no run
+    of the arm was done)."""
+    return format(summary(values), spec) if values else "n/a"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -96,21 +106,21 @@ def main(argv: list[str] | None = None) -> int:
             cm = [100 * r["clearance"] for r in done]
             rm = [100 * r["robust_margin"] for r in done]
             sm = [r["statics_margin"] for r in done if r["statics_margin"] is not None]
+            duration = [r["duration"] for r in done]
             print(
                 f"| {scene} | {arm} | {len(done)}/{len(rows)} | "
                 f"{statistics.median(r['plans'] for r in rows):g} "
                 f"({max(r['plans'] for r in rows)}) | "
                 f"{statistics.median(r['time'] for r in rows):.2f} | "
-                f"{statistics.median(cm):.1f} ({max(cm):.1f}) | "
-                f"{min(rm):.1f} / {statistics.median(rm):.1f} | {sum(m < 0 for m in rm)} | "
-                f"{min(sm):.2f} | {statistics.median(r['duration'] for r in done):.1f} |"
+                f"{figure(cm, '.1f')} ({figure(cm, '.1f', max)}) | "
+                f"{figure(rm, '.1f', min)} / {figure(rm, '.1f')} | {sum(m < 0 for m in rm)} | "
+                f"{figure(sm, '.2f', min)} | {figure(duration, '.1f')} |"
             )
     print()
     for scene, arms in runs.items():
         ratios = [b["time"] / a["time"] for a, b in zip(arms["off"], arms["on"], strict=True)]
-        low, high = interval(ratios, rng)
         print(f"{scene}: task time on / off, median {statistics.median(ratios):.2f} "
-              f"[{low:.2f}, {high:.2f}], max {max(ratios):.2f}")  # fmt: skip
+              f"[{interval(ratios, rng)}], max {max(ratios):.2f}")  # fmt: skip
     return 0
 
 

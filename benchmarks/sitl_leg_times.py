@@ -15,7 +15,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from flycrane.errors import InputError
+from bench_input import exit_if_unreadable
+
 from missions.flight_report.leg_times import MISSION_FIELDS, flight_record
 
 
@@ -23,10 +24,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("flights", nargs="+", type=Path, help="flight directories")
     args = parser.parse_args(argv)
-    try:
-        flights = [flight_record(path) for path in args.flights]
-    except (OSError, KeyError, ValueError, InputError) as error:
-        parser.exit(2, f"error: {error}\n")
+    flights = []
+    for path in args.flights:
+        with exit_if_unreadable(parser, path):
+            flights.append(flight_record(path))
     document = {
         "about": "per-leg durations of ArduCopter 4.5.7 SITL flights; see README.md",
         "mission_fields": list(MISSION_FIELDS),

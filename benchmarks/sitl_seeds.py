@@ -24,9 +24,14 @@ from pathlib import Path
 
 
 def seeds(text: str) -> list[int]:
-    """``0-29`` or ``3,5,8``."""
+    """``0-29`` or ``3,5,8``; an argparse type, so a range that holds no seed (``5-2``) is
+    refused as a bad argument rather than run as no runs at all."""
     if "-" in text:
         first, last = (int(x) for x in text.split("-"))
+        if first > last:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} holds no seed: FIRST-LAST needs FIRST <= LAST (e.g. 0-19)"
+            )
         return list(range(first, last + 1))
     return [int(x) for x in text.split(",")]
 

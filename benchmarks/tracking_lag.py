@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from bench_input import exit_if_unreadable
 from numpy.typing import NDArray
 
 from missions.flight_report import read_sitl_flight
@@ -75,9 +76,14 @@ def main() -> None:
     parser.add_argument("flights", nargs="+", type=Path)
     parser.add_argument("--offsets", action="store_true", help="fit each lag with an offset")
     args = parser.parse_args()
-    print("flight | drone | lag h, v [ms] | offset e, n, u [cm] | p95 [cm] | p95 lag out [cm]")
+    header = "flight | drone | lag h, v [ms] | offset e, n, u [cm] | p95 [cm] | p95 lag out [cm]"
     for flight_dir in args.flights:
-        for k, f in enumerate(drone_figures(flight_dir, args.offsets)):
+        with exit_if_unreadable(parser, flight_dir):
+            figures = drone_figures(flight_dir, args.offsets)
+        if header:  # once a flight has been read: a bad first one prints only its error
+            print(header)
+            header = ""
+        for k, f in enumerate(figures):
             offset = ", ".join(f"{x * 100:+.1f}" for x in f.offset)
             print(
                 f"{flight_dir} | {k + 1} | {f.lag['horizontal'] * 1000:.0f}, "
