@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
+from bench_input import at_least_one
 
 from flycrane.analysis.profiles import least_margins, path_profile
 from flycrane.model.statics import evaluate_statics
@@ -104,7 +105,7 @@ def summary(scene: str, table: np.ndarray) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=["rescue", "puzzle"])
-    parser.add_argument("--runs", type=int, default=20, help="seeds per scene (from 0)")
+    parser.add_argument("--runs", type=at_least_one, default=20, help="seeds per scene (from 0)")
     parser.add_argument("--budget", type=float, default=60.0, help="planning time limit [s]")
     parser.add_argument("--improve-time", type=float, default=5.0, help="refinement cap [s]")
     parser.add_argument("--robust", default="rtk", choices=[*sorted(PRESETS), "none"])

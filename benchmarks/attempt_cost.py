@@ -28,6 +28,7 @@ import time
 from dataclasses import replace
 
 import numpy as np
+from bench_input import at_least_one
 
 from flycrane.kernels import kernel
 from flycrane.model.statics_kernel import statics_row
@@ -75,7 +76,7 @@ def per_configuration(kernel, q, model, work) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=["puzzle", "rescue"])
-    parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument("--seeds", type=at_least_one, default=10)
     parser.add_argument("--count", type=int, default=20_000, help="configurations per loop")
     parser.add_argument("--budget", type=float, default=30.0, help="[s] per bitrrt run")
     args = parser.parse_args()

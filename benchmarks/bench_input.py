@@ -29,3 +29,15 @@ def exit_if_unreadable(parser: argparse.ArgumentParser, directory: Path) -> Iter
         yield
     except INPUT_ERRORS as error:
         parser.exit(2, f"error: {directory}: {error}\n")
+
+
+def at_least_one(text: str) -> int:
+    """An argparse type: a count of runs or seeds, 1 or more (a median of none is not a
+    figure)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} runs measure nothing: give 1 or more")
+    return value

@@ -16,6 +16,7 @@ import logging
 import statistics
 import time
 
+from bench_input import at_least_one
 from distributed import LocalCluster
 
 from flycrane.analysis.benchmark import run_benchmark
@@ -24,7 +25,7 @@ from flycrane.execution import DaskExecutor, local_executor
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=100, help="seeds")
+    parser.add_argument("--runs", type=at_least_one, default=100, help="seeds")
     parser.add_argument("--workers", type=int, default=2, help="processes on either side")
     parser.add_argument("--rounds", type=int, default=2)
     args = parser.parse_args()

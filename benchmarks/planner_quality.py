@@ -22,6 +22,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 
 import numpy as np
+from bench_input import at_least_one
 
 from flycrane.analysis.profiles import least_margins, path_profile
 from flycrane.planning.algorithms.bitrrt import BiTRRT
@@ -63,7 +64,7 @@ def run(scene: str, variant: str, fields: str, seed: int, budget: float) -> tupl
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", required=True)
-    parser.add_argument("--runs", type=int, default=100)
+    parser.add_argument("--runs", type=at_least_one, default=100)
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--budget", type=float, default=60.0)
     parser.add_argument("--workers", type=int, default=2)

@@ -16,6 +16,7 @@ import argparse
 import json
 
 import numpy as np
+from bench_input import at_least_one
 
 from flycrane.planning.algorithms.bitrrt import BiTRRT, BiTRRTConfig
 from flycrane.planning.problem import PlanningProblem
@@ -25,7 +26,7 @@ from flycrane.planning.result import TerminationCondition
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", required=True)
-    parser.add_argument("--runs", type=int, default=10)
+    parser.add_argument("--runs", type=at_least_one, default=10)
     parser.add_argument("--first-seed", type=int, default=0)
     parser.add_argument("--budget", type=float, default=60.0)
     parser.add_argument(

@@ -18,6 +18,7 @@ import tempfile
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
+from bench_input import at_least_one
 
 from flycrane.analysis.profiles import least_margins, path_profile
 from flycrane.planning.planners import PlannerOptions
@@ -47,7 +48,7 @@ def run(scene: str, polish: bool, seed: int, budget: float) -> tuple[str, str, t
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=["rescue", "puzzle"])
-    parser.add_argument("--runs", type=int, default=30)
+    parser.add_argument("--runs", type=at_least_one, default=30)
     parser.add_argument("--budget", type=float, default=60.0)
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()

@@ -20,6 +20,8 @@ import multiprocessing
 import tomllib
 from concurrent.futures import ProcessPoolExecutor
 
+from bench_input import at_least_one
+
 from flycrane.planning.planners import PlannerOptions, plan
 from flycrane.planning.problem import PlanningProblem
 from flycrane.world.scene import SCENES_DIR, SceneSpec, scene_from_dict
@@ -98,7 +100,7 @@ def main() -> None:
     parser.add_argument("--variant", type=json.loads, default={})
     parser.add_argument("--bounds", type=json.loads, default=None)
     parser.add_argument("--planners", nargs="+", default=["trrt", "rrt"])
-    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--runs", type=at_least_one, default=3)
     parser.add_argument("--budget", type=float, default=60.0)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--step", type=float, default=None, help="planner step (None: default)")

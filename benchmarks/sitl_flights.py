@@ -21,6 +21,8 @@ import sys
 from datetime import UTC, datetime
 from pathlib import Path
 
+from bench_input import at_least_one
+
 from flycrane.planning.planners import PlannerOptions
 from missions.options import MissionOptions
 from missions.task.pipeline import run_task
@@ -89,7 +91,7 @@ HEADER = (
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenes", nargs="+", default=["rescue", "puzzle"])
-    parser.add_argument("--runs", type=int, default=1)
+    parser.add_argument("--runs", type=at_least_one, default=1)
     parser.add_argument("--speedup", type=float, default=10.0)
     parser.add_argument("--position-error", default="sitl")
     parser.add_argument("--out", default="sitl-bench")

@@ -28,6 +28,7 @@ import statistics
 import time
 
 import numpy as np
+from bench_input import at_least_one
 from numpy.typing import NDArray
 
 from flycrane.model.statics_kernel import configuration_cost
@@ -73,7 +74,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--count", type=int, default=4000, help="single checks per checker")
     parser.add_argument("--motions", type=int, default=400, help="motions per checker")
-    parser.add_argument("--seeds", type=int, default=3, help="T-RRT seeds per checker")
+    parser.add_argument("--seeds", type=at_least_one, default=3, help="T-RRT seeds per checker")
     parser.add_argument("--budget", type=float, default=60.0, help="T-RRT seconds per run")
     parser.add_argument("--scenes", nargs="+", default=["rescue", "puzzle", "site"])
     args = parser.parse_args()
