@@ -17,6 +17,7 @@ drone{k}.waypoints     drone k's mission, QGC WPL 110; ``.plan`` QGroundControl;
                        ``.trajectory.csv`` its time law (:mod:`missions.export.
                        trajectory_file`)
 mission.mcap           the mission for Foxglove; profile.png the tensions and thrusts
+mesh{k}.{suffix}       the scene's mesh files, copied in: task.json names them so
 summary.json           :class:`TaskOutcome`: status, planner statistics, metrics, mission
 =====================  =====================================================================
 
