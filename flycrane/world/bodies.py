@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from flycrane.errors import FieldProblem, InputError
 from flycrane.model.cable_system import CableSystem
 from flycrane.quantities import MAX_LENGTH
+from flycrane.world.memo import SharedCache, array_digest, read_only
 from flycrane.world.scene import Box, Cylinder, Mesh, SceneSpec, Sphere
 
 #: Largest extent of a usable body [m]: a shape within MAX_LENGTH of its frame's origin,
@@ -64,6 +65,39 @@ def _bvh(vertices: NDArray, faces: NDArray) -> fcl.BVHModel:
     return model
 
 
+#: fcl hierarchies of meshes kept per process, shared by every checker of their scene
+#: (:func:`_mesh_model`): of at most this many faces in all (fcl's hierarchy takes some
+#: 500 bytes a face).
+MESH_MODEL_CACHE_FACES = 3_000_000
+
+_mesh_models: SharedCache[tuple[fcl.BVHModel, NDArray, NDArray, int]] = SharedCache(
+    MESH_MODEL_CACHE_FACES, lambda model: model[3]
+)
+
+
+def _mesh_model(
+    vertices: NDArray, faces: NDArray, field: str, name: str
+) -> tuple[fcl.BVHModel, NDArray, NDArray]:
+    """A mesh's fcl hierarchy and its vertices' bounds (low, high) (3,) each, once
+    :func:`require_triangles` has accepted it; built once per process for equal vertices
+    and faces, whatever scene and clearance they come with (they are the mesh's own, in its
+    frame): fcl only reads a hierarchy it checks against, so checkers share it.
+
+    Raises
+    ------
+    CollisionBodyError
+        As :func:`require_triangles`.
+    """
+    key = array_digest(np.asarray(vertices, dtype=float), np.asarray(faces, dtype=int))
+    cached = _mesh_models.get(key)
+    if cached is None:
+        require_triangles(vertices, faces, field, name)
+        low, high = vertices.min(axis=0), vertices.max(axis=0)
+        cached = (_bvh(vertices, faces), read_only(low), read_only(high), len(faces))
+        _mesh_models.put(key, cached)
+    return cached[:3]
+
+
 def body_from_shape(
     shape: Box | Cylinder | Sphere | Mesh, name: str, base_dir: Path | None, field: str = ""
 ) -> Body:
@@ -86,10 +120,7 @@ def body_from_shape(
     elif isinstance(shape, Sphere):
         geometry, half = fcl.Sphere(shape.radius), np.full(3, shape.radius)
     else:
-        vertices, faces = shape.triangles(base_dir)
-        require_triangles(vertices, faces, field or name, name)
-        geometry = _bvh(vertices, faces)
-        low, high = vertices.min(axis=0), vertices.max(axis=0)
+        geometry, low, high = _mesh_model(*shape.triangles(base_dir), field or name, name)
         offset, half = (low + high) / 2, (high - low) / 2
     body = Body(name, geometry, center, rotation, center + rotation @ offset, half)
     require_usable(body, field or name)

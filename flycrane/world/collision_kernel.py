@@ -64,7 +64,11 @@ def _primitives(
     """(kind, centre, rotation, size, margin) arrays of boxes, cylinders and spheres, and
     with ``mesh_margin`` the faces of meshes (a face's corners are its rotation's rows),
     each with that margin; without it meshes are left out."""
-    kind, center, rot, size, margin = [], [], [], [], []
+    kind: list[np.ndarray] = []
+    center: list[np.ndarray] = []
+    rot: list[np.ndarray] = []
+    size: list[np.ndarray] = []
+    margin: list[np.ndarray] = []
     for shape in shapes:
         if isinstance(shape, Mesh):
             if mesh_margin is None:
@@ -75,49 +79,55 @@ def _primitives(
             corners = world[np.asarray(faces, dtype=np.int64).reshape(-1, 3)]
             normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
             corners = corners[np.linalg.norm(normals, axis=1) > 0.0]  # no area: no face
-            kind += [TRIANGLE] * len(corners)
-            center += list(corners.mean(axis=1))
-            rot += list(corners)
-            size += [np.zeros(3)] * len(corners)
-            margin += [mesh_margin] * len(corners)
+            count = len(corners)
+            kind.append(np.full(count, TRIANGLE, dtype=np.int64))
+            center.append(corners.mean(axis=1))
+            rot.append(corners)
+            size.append(np.zeros((count, 3)))
+            margin.append(np.full(count, mesh_margin, dtype=float))
             continue
-        center.append(np.array(shape.center, dtype=float))
-        rot.append(shape.axes)
+        center.append(np.array(shape.center, dtype=float).reshape(1, 3))
+        rot.append(shape.axes.reshape(1, 3, 3))
         if isinstance(shape, Box):
-            kind.append(BOX)
-            size.append(np.array(shape.size) / 2)
-            margin.append(0.0)
+            kind.append(np.array([BOX], dtype=np.int64))
+            size.append((np.array(shape.size) / 2).reshape(1, 3))
+            margin.append(np.zeros(1))
         elif isinstance(shape, Cylinder):
-            kind.append(CYLINDER)
-            size.append(np.array([shape.radius, shape.height / 2, 0.0]))
-            margin.append(0.0)
+            kind.append(np.array([CYLINDER], dtype=np.int64))
+            size.append(np.array([[shape.radius, shape.height / 2, 0.0]]))
+            margin.append(np.zeros(1))
         elif isinstance(shape, Sphere):
-            kind.append(POINT)
-            size.append(np.zeros(3))
-            margin.append(shape.radius)
-    n = len(kind)
+            kind.append(np.array([POINT], dtype=np.int64))
+            size.append(np.zeros((1, 3)))
+            margin.append(np.array([shape.radius], dtype=float))
     return (
-        np.array(kind, dtype=np.int64),
-        np.array(center, dtype=float).reshape(n, 3),
-        np.array(rot, dtype=float).reshape(n, 3, 3),
-        np.array(size, dtype=float).reshape(n, 3),
-        np.array(margin, dtype=float),
+        np.concatenate([np.zeros(0, dtype=np.int64), *kind]),
+        np.concatenate([np.zeros((0, 3)), *center]).astype(float, copy=False),
+        np.concatenate([np.zeros((0, 3, 3)), *rot]).astype(float, copy=False),
+        np.concatenate([np.zeros((0, 3)), *size]).astype(float, copy=False),
+        np.concatenate([np.zeros(0), *margin]).astype(float, copy=False),
     )
+
+
+#: Triangles whose bounds :func:`_world_boxes` computes at once (bounding its scratch).
+_BOUNDS_CHUNK = 1 << 18
 
 
 def _world_boxes(kind, center, rot, size, margin) -> tuple[np.ndarray, np.ndarray]:
     """Axis-aligned bounds (low, high) of world-fixed primitives, each (O, 3)."""
     half = np.zeros_like(center)
-    for o in range(len(kind)):
+    for o in np.flatnonzero((kind == BOX) | (kind == CYLINDER)):
         if kind[o] == BOX:
             half[o] = np.abs(rot[o]) @ size[o]
-        elif kind[o] == CYLINDER:
+        else:
             axis = rot[o][:, 2]
             half[o] = size[o, 0] * np.sqrt(np.clip(1 - axis**2, 0, 1)) + size[o, 1] * np.abs(axis)
-        elif kind[o] == TRIANGLE:
-            low, high = rot[o].min(axis=0), rot[o].max(axis=0)
-            half[o] = np.maximum(high - center[o], center[o] - low)
-        half[o] += margin[o]
+    triangles = np.flatnonzero(kind == TRIANGLE)
+    for first in range(0, len(triangles), _BOUNDS_CHUNK):
+        chosen = triangles[first : first + _BOUNDS_CHUNK]
+        corners, middle = rot[chosen], center[chosen]
+        half[chosen] = np.maximum(corners.max(axis=1) - middle, middle - corners.min(axis=1))
+    half += margin[:, None]
     return center - half, center + half
 
 

@@ -10,6 +10,8 @@ allowed in scenes sent over HTTP) or inline vertices and faces.
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import math
 import tomllib
@@ -34,6 +36,7 @@ from flycrane.quantities import (
     Point,
 )
 from flycrane.user_files import MAX_MESH_BYTES, read_text, regular_file
+from flycrane.world.memo import SharedCache, read_only
 
 StrictIndex = Annotated[int, Field(ge=0, strict=True)]
 #: Every scene schema: numbers finite (flycrane.quantities), unknown fields refused.
@@ -101,7 +104,8 @@ class Mesh(_Shape):
         return self
 
     def triangles(self, base_dir: Path | None) -> tuple[np.ndarray, np.ndarray]:
-        """(vertices (V, 3) scaled, faces (F, 3)) from the file or the inline data.
+        """(vertices (V, 3) scaled, faces (F, 3)) from the file or the inline data; both
+        read-only (a file's faces are shared: :func:`_mesh_file` parses a file once).
 
         Raises
         ------
@@ -110,21 +114,49 @@ class Mesh(_Shape):
             lie beyond ``MAX_LENGTH`` once scaled (field ``mesh.file``).
         """
         if self.vertices is not None and self.faces is not None:
-            return self.scale * np.asarray(self.vertices, float), np.asarray(self.faces, int)
-        import trimesh
-
+            vertices = self.scale * np.asarray(self.vertices, float)
+            return read_only(vertices), read_only(np.asarray(self.faces, int))
         path = Path(str(self.file)) if base_dir is None else base_dir / str(self.file)
         try:
-            mesh = trimesh.load_mesh(regular_file(path, "mesh.file", MAX_MESH_BYTES))
-            vertices = self.scale * np.asarray(mesh.vertices, float)
-            faces = np.asarray(mesh.faces, int)
+            raw, faces = _mesh_file(regular_file(path, "mesh.file", MAX_MESH_BYTES))
+            vertices = self.scale * raw
             _check_extent(vertices)
         except InputError as error:
             raise SceneError(error.about(path).problems) from None
         # IndexError: trimesh's OBJ reader on a face that names a vertex the file lacks
         except (OSError, ValueError, AttributeError, IndexError) as error:
             raise SceneError([FieldProblem("mesh.file", f"{path}: {error}")]) from None
-        return vertices, faces
+        return read_only(vertices), faces
+
+
+#: Parsed mesh files kept per process (:func:`_mesh_file`), in bytes of arrays in all (a file
+#: of MAX_MESH_BYTES parses to at most ~130 MB).
+MESH_FILE_CACHE_BYTES = 512 * 2**20
+
+_mesh_files: SharedCache[tuple[np.ndarray, np.ndarray]] = SharedCache(
+    MESH_FILE_CACHE_BYTES, lambda arrays: arrays[0].nbytes + arrays[1].nbytes
+)
+
+
+def _mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (V, 3) float, faces (F, 3) int) of a mesh file as trimesh reads it,
+    unscaled and read-only; parsed once per process for the same bytes and suffix (what
+    trimesh reads by): a task builds several checkers of one scene, each of which takes its
+    meshes' triangles more than once, and reading a file costs little beside parsing it.
+
+    Raises what ``trimesh.load_mesh`` raises (nothing is cached then).
+    """
+    import trimesh
+
+    data, kind = path.read_bytes(), path.suffix.lower().lstrip(".")
+    key = (hashlib.blake2b(data, digest_size=20).digest(), kind)
+    cached = _mesh_files.get(key)
+    if cached is None:
+        mesh = trimesh.load_mesh(io.BytesIO(data), file_type=kind)
+        vertices = read_only(np.array(mesh.vertices, dtype=float))
+        cached = (vertices, read_only(np.array(mesh.faces, dtype=int)))
+        _mesh_files.put(key, cached)
+    return cached
 
 
 def _check_extent(vertices: np.ndarray) -> None:
