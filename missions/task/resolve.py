@@ -27,7 +27,7 @@ from flycrane.planning.poses import configuration_from_pose
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.robust_clearance import RobustClearance
 from flycrane.planning.validity import InvalidConfigurationError, ValidityChecker
-from flycrane.world.scene import SceneSpec, load_scene
+from flycrane.world.scene import SceneSpec, list_scenes, load_scene
 from missions.options import MAX_MISSION_DURATION_S
 from missions.position_error import PositionErrorModel, position_error_model
 from missions.task.spec import PlatformPose, TaskSpec
@@ -109,7 +109,8 @@ def task_specs(
     task: TaskSpec, base_dir: Path | None = None
 ) -> tuple[SystemSpec, SceneSpec, Path | None]:
     """The task's system and scene with presets loaded, and the directory its scene's mesh
-    files are relative to.
+    files are relative to. A scene file's path is relative to ``base_dir`` (the task
+    file's folder), as a scene's mesh files are to the scene file's.
 
     Raises
     ------
@@ -119,8 +120,11 @@ def task_specs(
     system = system_preset(task.system) if isinstance(task.system, str) else task.system
     if not isinstance(task.scene, str):
         return system, task.scene, base_dir
+    source = task.scene
+    if base_dir is not None and source not in list_scenes():
+        source = str(base_dir / source)  # an absolute path stays itself
     try:
-        scene, scene_dir = load_scene(task.scene)
+        scene, scene_dir = load_scene(source)
     except InputError as error:
         where = f"{error.source}: " if error.source else ""
         problems = [

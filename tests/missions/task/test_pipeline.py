@@ -28,7 +28,7 @@ from flycrane.planning.planners import PlannerOptions
 from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import InvalidConfigurationError
 from flycrane.world.bodies import box_corners
-from flycrane.world.scene import load_scene
+from flycrane.world.scene import SCENES_DIR, load_scene
 from missions.autopilots.ardupilot import ArduCopterSettings, team_parameters
 from missions.autopilots.spline import SpeedLimits
 from missions.export.formats import mission_from_json
@@ -39,7 +39,7 @@ from missions.task.build import build
 from missions.task.directory import TaskDirectory
 from missions.task.pipeline import run_task
 from missions.task.resolve import resolve_task
-from missions.task.spec import TaskSpec
+from missions.task.spec import TaskSpec, load_task
 from missions.trajectory.motion import DroneMotion
 from tests.missions.helpers import applied_limits, approximate_geodetic
 
@@ -338,6 +338,18 @@ def test_a_task_of_mesh_files_plans_again_from_its_directory_alone(tmp_path, mon
         assert (elsewhere / "again" / name).read_bytes() == (out / name).read_bytes(), name
     assert main(["plan", "--out", str(out)]) == 0  # the default Rescue, of boxes
     assert not list(out.glob("mesh*"))
+
+
+def test_a_task_file_s_scene_path_is_relative_to_the_task_file(tmp_path, monkeypatch):
+    """It was relative to where the command ran: a task file beside its scene, planned
+    from anywhere else, had 'no scene'."""
+    site = tmp_path / "site"
+    site.mkdir()
+    (site / "scene.toml").write_text((SCENES_DIR / "rescue.toml").read_text())
+    (site / "task.json").write_text(json.dumps({"scene": "scene.toml"}))
+    monkeypatch.chdir(tmp_path)
+    resolved = resolve_task(*load_task(site / "task.json"))
+    assert resolved.problem.scene.obstacles == load_scene("rescue")[0].obstacles
 
 
 def test_bitrrt_asked_for_with_a_mesh_payload_is_refused_naming_the_field():
