@@ -24,6 +24,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import select
+import signal
 import threading
 import time
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -41,11 +42,18 @@ def available_workers() -> int:
         return os.cpu_count() or 1
 
 
-def exit_with_parent(parent: int) -> None:
-    """Start a daemon thread that ends this process as soon as process ``parent`` has ended.
+def start_worker(parent: int) -> None:
+    """The pool's initializer in every worker: a terminal's Ctrl-C (SIGINT to the whole
+    process group) is the parent's to act on, not the worker's (the service leaves a
+    running task to be run again at its next start, a benchmark ends, and the workers end
+    with their parent: :func:`exit_with_parent`)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    exit_with_parent(parent)
 
-    Runs as the pool's initializer in every worker (module docstring).
-    """
+
+def exit_with_parent(parent: int) -> None:
+    """Start a daemon thread that ends this process as soon as process ``parent`` has ended
+    (module docstring)."""
 
     def watch() -> None:
         try:
@@ -68,7 +76,7 @@ def local_executor(workers: int | None = None) -> Executor:
     return ProcessPoolExecutor(
         max_workers=workers or available_workers(),
         mp_context=multiprocessing.get_context("spawn"),
-        initializer=exit_with_parent,
+        initializer=start_worker,
         initargs=(os.getpid(),),
     )
 

@@ -113,6 +113,23 @@ def test_stopping_a_local_pool_kills_its_running_job(tmp_path, monkeypatch):
     assert wait([future], timeout=30).done == {future}
 
 
+def _interrupted() -> int:
+    """A terminal's Ctrl-C, as a worker in the terminal's process group gets it."""
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(0.2)
+    return os.getpid()
+
+
+def test_a_ctrl_c_is_the_parent_s_not_the_worker_s():
+    """Ctrl-C on `flycrane serve` reached the worker too: its KeyboardInterrupt failed the
+    running task for good, where the server's own shutdown leaves it to be run again."""
+    with local_executor(1) as executor:
+        try:
+            assert executor.submit(_interrupted).result(timeout=60) != os.getpid()
+        except KeyboardInterrupt:  # the worker's, sent back as the job's outcome
+            pytest.fail("the worker took the Ctrl-C")
+
+
 @pytest.mark.parametrize(
     ("address", "expected"),
     [("tcp://10.0.0.5:8786", "tcp://10.0.0.5:8786"), ("dask://host:8786", "tcp://host:8786"),
