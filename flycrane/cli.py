@@ -114,6 +114,7 @@ def _cmd_system(args: argparse.Namespace) -> int:
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     from flycrane.analysis.benchmark import (
+        RunRecord,
         format_margins,
         format_table,
         run_benchmark,
@@ -131,7 +132,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     out = output_directory(args.out)
     total = len(args.scenes) * len(args.planners) * args.runs
     records = []
-    with executor_for(args.cluster, args.workers) as executor:
+
+    def order(r: RunRecord) -> tuple[int, int, int]:
+        return args.scenes.index(r.scene), args.planners.index(r.planner), r.seed
+
+    executor = executor_for(args.cluster, args.workers)
+    try:
         for record in run_benchmark(
             executor, args.scenes, args.planners, args.runs, args.budget, base
         ):
@@ -142,11 +148,22 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                 file=sys.stderr,
                 flush=True,
             )
-    records.sort(key=lambda r: (args.scenes.index(r.scene), args.planners.index(r.planner), r.seed))
+    except KeyboardInterrupt:
+        # the runs not started are dropped, the running ones end with this process (their
+        # workers exit with it), and those that finished are kept
+        executor.shutdown(wait=False, cancel_futures=True)
+        records.sort(
+            key=lambda r: (args.scenes.index(r.scene), args.planners.index(r.planner), r.seed)
+        )
+        write_results(records, summarize(records), out)
+        print(f"interrupted: the {len(records)} of {total} runs that finished are in {out}",
+              file=sys.stderr)  # fmt: skip
+        return 130
+    executor.shutdown()
+    records.sort(key=order)
     rows = summarize(records)
-    # the results first: a figure that fails must not lose what the runs computed
+    print(format_table(rows), flush=True)  # before the files: a full disk must not lose it
     write_results(records, rows, out)
-    print(format_table(rows), flush=True)
     margins, figures = {}, {}
     for scene, label in zip(args.scenes, scene_labels(args.scenes), strict=True):
         problem = PlanningProblem.named(scene)
