@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import argparse
 import ipaddress
+import re
 import sys
 
 from pydantic import ValidationError
+from pydantic_settings import SettingsError
 
 from flycrane.errors import field_messages
 
@@ -44,14 +46,20 @@ def _cmd_serve(args: argparse.Namespace) -> int:
     from service.settings import Settings
     from service.startup import open_storage
 
-    overrides = {
-        k: v for k, v in (("data_dir", args.data_dir), ("workers", args.workers)) if v is not None
-    }
+    options = {"data_dir": "--data-dir", "workers": "--workers"}
+    overrides = {k: getattr(args, k) for k in options if getattr(args, k) is not None}
     try:
         settings = Settings(**overrides)
     except ValidationError as error:
         for field, message in field_messages(error.errors()):
-            print(f"flycrane serve: FLYCRANE_{field.upper()}: {message}", file=sys.stderr)
+            name = options[field] if field in overrides else f"FLYCRANE_{field.upper()}"
+            print(f"flycrane serve: {name}: {message}", file=sys.stderr)
+        return 2
+    except SettingsError as error:  # a list setting that is not JSON
+        found = re.search(r'field "(\w+)"', str(error))
+        name = f"FLYCRANE_{found.group(1).upper()}" if found else "a FLYCRANE_ setting"
+        print(f'flycrane serve: {name}: not JSON: a list is written as JSON, e.g. ["a", "b"]',
+              file=sys.stderr)  # fmt: skip
         return 2
     if settings.api_token is None and not _loopback(args.host) and not args.allow_unauthenticated:
         print(

@@ -16,7 +16,7 @@ from functools import lru_cache
 from ipaddress import AddressValueError, IPv4Network, IPv6Address, IPv6Network
 from pathlib import Path
 
-from pydantic import AnyHttpUrl, Field, SecretStr, field_validator, model_validator
+from pydantic import AnyHttpUrl, Field, SecretStr, ValidationInfo, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError, NoSuchModuleError
@@ -100,7 +100,7 @@ class Settings(BaseSettings):
         30.0,
         gt=0,
         le=36_500,
-        description="finished tasks older than this are deleted with their files; None: kept",
+        description="finished tasks older than this are deleted with their files; 'none': kept",
     )
     upload_networks: tuple[IPv4Network | IPv6Network, ...] = Field(
         DEFAULT_UPLOAD_NETWORKS,
@@ -134,6 +134,29 @@ class Settings(BaseSettings):
         "/docs (Swagger UI from this server); false: neither",
     )
 
+    @field_validator("retention_days", mode="before")
+    @classmethod
+    def _kept(cls, value: object) -> object:
+        """``none`` (or empty) keeps finished tasks: an unset variable means the default."""
+        if isinstance(value, str) and value.strip().lower() in ("", "none", "null"):
+            return None
+        return value
+
+    @field_validator("data_dir", mode="before")
+    @classmethod
+    def _named(cls, value: object) -> object:
+        """An empty name would quietly mean the current directory."""
+        if isinstance(value, str | Path) and not str(value).strip():
+            raise ValueError("an empty name: give the directory (default: data)")
+        return value
+
+    @field_validator("allowed_hosts")
+    @classmethod
+    def _some_host(cls, hosts: tuple[str, ...]) -> tuple[str, ...]:
+        if not hosts:
+            raise ValueError("no host: every request would get 400; give '*' for any")
+        return hosts
+
     @field_validator("api_token", "read_token")
     @classmethod
     def _strong_token(cls, value: SecretStr | None) -> SecretStr | None:
@@ -162,6 +185,12 @@ class Settings(BaseSettings):
             raise ValueError(
                 f"not a database URL SQLAlchemy can use ({error}); e.g. {DATABASE_URL_EXAMPLE}"
             ) from None
+        url = make_url(value)
+        if dialect.name == "sqlite" and url.database in (None, "", ":memory:"):
+            raise ValueError(
+                "an in-memory SQLite database holds nothing the workers or a restart can "
+                "see; name a file (sqlite:////path/flycrane.db) or leave it unset"
+            )
         if dialect.is_async:
             raise ValueError(
                 f"{dialect.driver} is an asyncio driver, the service needs a synchronous one; "
@@ -202,11 +231,14 @@ class Settings(BaseSettings):
         """The Dask scheduler's address (``tcp://host:port``), None for the local pool."""
         return None if self.executor == "local" else scheduler_address(self.executor)
 
-    @model_validator(mode="after")
-    def _read_token_needs_api_token(self) -> Settings:
-        if self.read_token is not None and self.api_token is None:
-            raise ValueError("read_token needs api_token: otherwise anyone could write")
-        return self
+    @field_validator("read_token")
+    @classmethod
+    def _read_token_needs_api_token(
+        cls, value: SecretStr | None, info: ValidationInfo
+    ) -> SecretStr | None:
+        if value is not None and info.data.get("api_token") is None:
+            raise ValueError("needs FLYCRANE_API_TOKEN: otherwise anyone could write")
+        return value
 
     @property
     def resolved_database_url(self) -> str:

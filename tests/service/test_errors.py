@@ -156,7 +156,7 @@ def test_public_reads_open_reading_only(tmp_path):
         ({"api_token": ""}, "api_token"),
         ({"api_token": "   "}, "api_token"),
         ({"api_token": "short"}, "api_token"),
-        ({"read_token": READ_TOKEN}, "read_token needs api_token"),
+        ({"read_token": READ_TOKEN}, "read_token\n  Value error, needs FLYCRANE_API_TOKEN"),
     ],
 )
 def test_an_empty_or_weak_token_is_refused_not_ignored(tmp_path, settings, field):
@@ -167,6 +167,38 @@ def test_an_empty_or_weak_token_is_refused_not_ignored(tmp_path, settings, field
     with pytest.raises(ValidationError) as info:
         Settings(data_dir=tmp_path, **settings)
     assert field in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("settings", "reason"),
+    [
+        ({"data_dir": ""}, "data_dir\n  Value error, an empty name"),
+        ({"allowed_hosts": ()}, "allowed_hosts\n  Value error, no host"),
+        ({"database_url": "sqlite://"}, "database_url\n  Value error, an in-memory"),
+        ({"database_url": "sqlite:///:memory:"}, "database_url\n  Value error, an in-memory"),
+    ],
+)
+def test_settings_a_server_could_not_work_with_are_refused(settings, reason):
+    """Each started a server that quietly used the current directory, refused every
+    request with 400, or lost every task (the workers see another in-memory database)."""
+    from pydantic import ValidationError
+
+    from service.settings import Settings
+
+    with pytest.raises(ValidationError) as info:
+        Settings(**settings)
+    assert reason in str(info.value)
+
+
+@pytest.mark.parametrize("value", ["none", "None", ""])
+def test_retention_none_keeps_finished_tasks(monkeypatch, value):
+    """The README said 'unset it to keep them', but unset is the default, 30 days."""
+    from service.settings import Settings
+
+    monkeypatch.setenv("FLYCRANE_RETENTION_DAYS", value)
+    assert Settings().retention_days is None
+    monkeypatch.delenv("FLYCRANE_RETENTION_DAYS")
+    assert Settings().retention_days == 30.0
 
 
 @pytest.mark.parametrize(
