@@ -469,8 +469,16 @@ class TaskDirectory:
             ) from None
 
     def task(self) -> TaskSpec:
-        """The task as planned, written out whole (system, scene, start, goal, planner)."""
-        return self._model(TASK_FILE, TaskSpec.model_validate)
+        """The task as planned, written out whole (system, scene, start, goal, planner); the
+        mesh files its scene names must be in the directory (:meth:`write_task`)."""
+        task: TaskSpec = self._model(TASK_FILE, TaskSpec.model_validate)
+        if isinstance(task.scene, SceneSpec):
+            for shape in (*task.scene.obstacles, *task.scene.payload.shapes):
+                if isinstance(shape, Mesh) and shape.file is not None:
+                    if not (self.path / shape.file).is_file():
+                        reason = f"is missing (task.json's mesh {shape.name or shape.file!r})"
+                        raise TaskDirectoryError(self.path, shape.file, reason)
+        return task
 
     def planned_path(self) -> NDArray[np.float64]:
         """The smoothed path the missions follow, (M, 9)."""

@@ -36,7 +36,7 @@ from missions.export.items import MavCmd
 from missions.options import MissionOptions
 from missions.position_error import PRESETS
 from missions.task.build import build
-from missions.task.directory import TaskDirectory
+from missions.task.directory import TaskDirectory, TaskDirectoryError
 from missions.task.pipeline import run_task
 from missions.task.resolve import resolve_task
 from missions.task.spec import TaskSpec, load_task
@@ -336,6 +336,9 @@ def test_a_task_of_mesh_files_plans_again_from_its_directory_alone(tmp_path, mon
     assert main(["plan", "../out/task.json", "--out", "again"]) == 0
     for name in ("drone1.waypoints", "drone2.waypoints", "drone3.waypoints"):
         assert (elsewhere / "again" / name).read_bytes() == (out / name).read_bytes(), name
+    (elsewhere / "again" / "mesh2.obj").unlink()  # a copy without its meshes is named
+    with pytest.raises(TaskDirectoryError, match=r"mesh2\.obj is missing .*'east building'"):
+        TaskDirectory(elsewhere / "again").task()
     assert main(["plan", "--out", str(out)]) == 0  # the default Rescue, of boxes
     assert not list(out.glob("mesh*"))
 
