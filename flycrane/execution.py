@@ -111,9 +111,10 @@ class DaskExecutor(Executor):
 
 
 def scheduler_address(text: str) -> str:
-    """A Dask scheduler's address as Dask takes it: ``tcp://host:port`` or ``tls://...``,
-    ``dask://`` read as ``tcp://``. Checked before a client is made: Dask's own error for a
-    malformed address comes as a traceback, then a minute's wait in the client's cleanup.
+    """A Dask scheduler's address as Dask takes it: ``tcp://host:port``, ``dask://`` read as
+    ``tcp://``. Checked before a client is made: Dask's own error for a malformed address
+    comes as a traceback, then a minute's wait in the client's cleanup. ``tls://`` is
+    refused: it needs a Dask security configuration (certificates) this client is not given.
 
     Raises
     ------
@@ -121,8 +122,13 @@ def scheduler_address(text: str) -> str:
         Not one of these schemes, or no host, or a port not in 1..65535.
     """
     scheme, separator, rest = text.partition("://")
-    if not separator or scheme not in ("dask", "tcp", "tls"):
-        raise ValueError(f"{text!r} is not a scheduler address, tcp://host:port (or tls://)")
+    if scheme == "tls":
+        raise ValueError(
+            f"{text!r}: TLS needs certificates this client is not given; reach the scheduler "
+            "over tcp:// on a private network (or through a tunnel)"
+        )
+    if not separator or scheme not in ("dask", "tcp"):
+        raise ValueError(f"{text!r} is not a scheduler address, tcp://host:port")
     host, colon, port = rest.rpartition(":")
     if not (colon and host and port.isdigit() and 0 < int(port) < 65536):
         raise ValueError(f"{text!r} has no host, or no port in 1..65535 (tcp://host:8786)")
@@ -131,7 +137,7 @@ def scheduler_address(text: str) -> str:
 
 def executor_for(address: str | None, workers: int | None = None) -> Executor:
     """The local process pool of ``workers`` for no address (or ``"local"``), the Dask cluster
-    at a scheduler address (``tcp://host:port``, ``tls://...``) otherwise."""
+    at a scheduler address (``tcp://host:port``) otherwise."""
     if not address or address == "local":
         return local_executor(workers)
     return DaskExecutor(scheduler_address(address))

@@ -64,7 +64,7 @@ class Settings(BaseSettings):
     executor: str = Field(
         "local",
         description="where tasks run: 'local' (a pool of `workers` processes) or a Dask "
-        "cluster, 'dask://host:port' (its scheduler; also tcp:// or tls://). Its workers "
+        "cluster, 'dask://host:port' (its scheduler; also tcp://). Its workers "
         "must reach database_url (PostgreSQL, not the local SQLite file); artifacts come back "
         "with the results, no shared disk is assumed",
     )

@@ -133,7 +133,7 @@ def test_a_ctrl_c_is_the_parent_s_not_the_worker_s():
 @pytest.mark.parametrize(
     ("address", "expected"),
     [("tcp://10.0.0.5:8786", "tcp://10.0.0.5:8786"), ("dask://host:8786", "tcp://host:8786"),
-     ("tls://[::1]:8786", "tls://[::1]:8786")],
+     ("tcp://[::1]:8786", "tcp://[::1]:8786")],
 )  # fmt: skip
 def test_scheduler_addresses_as_dask_takes_them(address, expected):
     assert scheduler_address(address) == expected
@@ -144,3 +144,9 @@ def test_scheduler_addresses_as_dask_takes_them(address, expected):
 def test_a_malformed_scheduler_address_is_refused_before_a_client_is_made(address):
     with pytest.raises(ValueError, match=r"scheduler address|port in 1\.\.65535"):
         scheduler_address(address)
+
+
+def test_a_tls_scheduler_is_refused_for_want_of_certificates():
+    """Dask took it and failed with a TypeError traceback, then a minute's wait."""
+    with pytest.raises(ValueError, match="TLS needs certificates"):
+        scheduler_address("tls://10.0.0.5:8786")

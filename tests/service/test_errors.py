@@ -204,7 +204,7 @@ def test_retention_none_keeps_finished_tasks(monkeypatch, value):
 @pytest.mark.parametrize(
     ("executor", "scheduler"),
     [("local", None), ("dask://10.0.0.5:8786", "tcp://10.0.0.5:8786"),
-     ("tls://host:8786", "tls://host:8786"), ("dask://host", None), ("tcp://:8786", None),
+     ("tls://host:8786", None), ("dask://host", None), ("tcp://:8786", None),
      ("dask://host:99999", None), ("garbage", None)],
 )  # fmt: skip
 def test_the_executor_is_local_or_a_whole_scheduler_address(tmp_path, executor, scheduler):
