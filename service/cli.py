@@ -78,6 +78,15 @@ def _cmd_serve(args: argparse.Namespace) -> int:
         return 1
     engine.dispose()
     lock.release()
+    if settings.dask_scheduler is not None:  # the same: a scheduler that does not answer
+        from flycrane.execution import DaskExecutor
+
+        try:
+            DaskExecutor(settings.dask_scheduler).shutdown()
+        except OSError as error:
+            print(f"flycrane serve: FLYCRANE_EXECUTOR: no Dask scheduler answers at "
+                  f"{settings.dask_scheduler} ({error})", file=sys.stderr)  # fmt: skip
+            return 1
     uvicorn.run(
         create_app(settings),
         host=args.host,

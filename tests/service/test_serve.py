@@ -153,6 +153,8 @@ def test_the_docker_health_check_passes_behind_the_readmes_proxy_setup(tmp_path)
         ("FLYCRANE_DATABASE_URL", "bogus://", "sqlalchemy.dialects:bogus"),
         ("FLYCRANE_DATABASE_URL", "not a url", "Could not parse SQLAlchemy URL"),
         ("FLYCRANE_DATABASE_URL", "postgresql://h:port/db", "not a database URL"),
+        ("FLYCRANE_ALLOWED_HOSTS", "localhost", "not JSON: a list is written as JSON"),
+        ("FLYCRANE_RETENTION_DAYS", "forever", "valid number"),
     ],
 )  # fmt: skip
 def test_a_setting_the_server_cannot_use_is_refused_in_one_line(tmp_path, variable, value, why):
@@ -168,3 +170,17 @@ def test_a_setting_the_server_cannot_use_is_refused_in_one_line(tmp_path, variab
     assert len(lines) == 1 and lines[0].startswith(f"flycrane serve: {variable}: "), lines
     assert why in lines[0] and "Traceback" not in done.stderr
     assert not (tmp_path / "data").exists()
+
+
+def test_a_scheduler_that_does_not_answer_is_refused_in_one_line(tmp_path):
+    """The start ended in some hundred lines of uvicorn's and Dask's traceback."""
+    environment = {**clean_environment(), "FLYCRANE_EXECUTOR": "dask://127.0.0.1:9",
+                   "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "2s"}  # fmt: skip
+    done = subprocess.run(
+        serve_command(tmp_path / "data"), capture_output=True, text=True, timeout=120,
+        env=environment,
+    )  # fmt: skip
+    assert done.returncode == 1, done.stderr[-3000:]
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr
+    assert lines[0].startswith("flycrane serve: FLYCRANE_EXECUTOR: no Dask scheduler answers")
