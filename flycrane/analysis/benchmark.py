@@ -10,8 +10,10 @@ time t over all runs, and of N and X, with the success rate.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
+import os
 from collections.abc import Iterable, Sequence
 from concurrent.futures import Executor
 from dataclasses import asdict, dataclass
@@ -177,19 +179,28 @@ def write_results(records: Sequence[RunRecord], rows: Sequence[dict], out: Path)
     """runs.csv (one line per run), summary.json (table rows and runs with paths)."""
     out.mkdir(parents=True, exist_ok=True)
     fields = [f for f in RunRecord.__dataclass_fields__ if f != "path"]
-    with (out / "runs.csv").open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, fieldnames=fields)
-        writer.writeheader()
-        for record in records:
-            writer.writerow({f: getattr(record, f) for f in fields})
+    table = io.StringIO(newline="")
+    writer = csv.DictWriter(table, fieldnames=fields)
+    writer.writeheader()
+    for record in records:
+        writer.writerow({f: getattr(record, f) for f in fields})
+    _write_whole(out / "runs.csv", table.getvalue())
     clean = lambda v: None if isinstance(v, float) and math.isnan(v) else v  # noqa: E731
-    (out / "summary.json").write_text(
-        json.dumps(
-            {
-                "table": [{k: clean(v) for k, v in row.items()} for row in rows],
-                "runs": [asdict(r) for r in records],
-            },
-            indent=1,
-        ),
-        encoding="utf-8",
-    )
+    summary = {
+        "table": [{k: clean(v) for k, v in row.items()} for row in rows],
+        "runs": [asdict(r) for r in records],
+    }
+    _write_whole(out / "summary.json", json.dumps(summary, indent=1))
+
+
+def _write_whole(path: Path, text: str) -> None:
+    """``text`` into ``path`` whole or not at all: a full disk leaves no half a file that
+    reads as a result. An error names the file (a full disk's does not)."""
+    partial = path.with_name(f".{path.name}.partial")
+    try:
+        with partial.open("w", encoding="utf-8", newline="") as handle:
+            handle.write(text)
+        os.replace(partial, path)
+    except OSError as error:
+        partial.unlink(missing_ok=True)
+        raise OSError(error.errno, error.strerror, str(path)) from error
