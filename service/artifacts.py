@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import TypeVar
 
 from missions.export.items import DroneMission
-from missions.task.directory import DRONES, TaskDirectory, TaskDirectoryError, mission_file
+from missions.task.directory import TaskDirectory, TaskDirectoryError, mission_file
+from missions.task.documents import DRONES
 from missions.task.spec import TaskSpec
 from missions.viewer import PAGE_FILE, ViewUnavailableError, standalone_page, view_document
 from service.errors import (

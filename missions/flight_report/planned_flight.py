@@ -17,7 +17,8 @@ from flycrane.planning.problem import PlanningProblem
 from flycrane.planning.validity import ValidityChecker
 from flycrane.world.scene import SceneSpec
 from missions.execution.group_clock import GroupClock
-from missions.task.directory import Release, TaskDirectory
+from missions.task.directory import TaskDirectory
+from missions.task.documents import Release
 from missions.task.spec import TaskSpec
 from missions.trajectory.drone_trajectory import DroneTrajectory
 from missions.trajectory.motion import MOTION_STEP_S, DroneMotion, forward_progress

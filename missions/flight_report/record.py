@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from flycrane.errors import FieldProblem, InputError
-from missions.task.directory import DRONES
+from missions.task.documents import DRONES
 from missions.viewer.flown import FLOWN_FILE
 
 FLIGHT_FILE = "flight.json"

@@ -19,7 +19,7 @@ from missions.export.builder import HOLD_SEQ, RELEASE_SEQ, build_missions
 from missions.export.items import DroneMission
 from missions.geodesy import geodetic_from_enu
 from missions.options import MAX_MISSION_DURATION_S
-from missions.task.directory import MissionSummary, Release, Tracks
+from missions.task.documents import MissionSummary, Release, Tracks
 from missions.task.limits import MissionFailure, PhaseLimits
 from missions.task.resolve import ResolvedTask
 from missions.trajectory.annotations import Annotations, annotate

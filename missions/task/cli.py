@@ -31,8 +31,8 @@ def _cmd_plan(args: argparse.Namespace) -> int:
         SUMMARY_FILE,
         TASK_FILE,
         mission_file,
-        raised_clearance,
     )
+    from missions.task.documents import raised_clearance
     from missions.task.pipeline import run_task
     from missions.task.resolve import resolve_task
     from missions.task.spec import TaskSpec, load_task

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from flycrane.errors import FlyCraneError
-from missions.task.directory import Status
+from missions.task.documents import Status
 from missions.trajectory.waypoints import SafetyCheck
 
 

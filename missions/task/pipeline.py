@@ -24,7 +24,8 @@ from flycrane.planning.planners import plan
 from flycrane.planning.result import PlanningProgress
 from flycrane.quantities import MAX_SEED
 from missions.task.build import UnflyablePath, build
-from missions.task.directory import Status, TaskDirectory, TaskOutcome, raised_clearance
+from missions.task.directory import TaskDirectory
+from missions.task.documents import Status, TaskOutcome, raised_clearance
 from missions.task.limits import Cancelled, MissionFailure, PhaseLimits, TaskEnded, ending
 from missions.task.resolve import ResolvedTask, resolve_raised, resolve_task
 from missions.task.spec import TaskSpec

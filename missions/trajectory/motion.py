@@ -103,7 +103,7 @@ class DroneMotion:
 
     def decimated(self, rate: float) -> DroneMotion:
         """The samples that show the motion at ``rate`` Hz (the last one kept): what a
-        reader that interpolates needs (:data:`missions.task.directory.STORED_MOTION_RATE_HZ`)."""
+        reader that interpolates needs (:data:`missions.task.documents.STORED_MOTION_RATE_HZ`)."""
         keep = samples_at_rate(self.time, rate)
         return DroneMotion(self.time[keep], self.drones[keep], self.waypoint_time)
 

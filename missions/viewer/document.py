@@ -26,7 +26,8 @@ from flycrane.model.kinematics import (
 )
 from flycrane.world.bodies import platform_prism
 from flycrane.world.scene import Mesh, SceneSpec, Shape
-from missions.task.directory import TaskDirectory, TaskDirectoryError, TaskOutcome, Tracks
+from missions.task.directory import TaskDirectory, TaskDirectoryError
+from missions.task.documents import TaskOutcome, Tracks
 from missions.task.resolve import task_specs
 from missions.task.spec import TaskSpec
 from missions.trajectory.annotations import annotate

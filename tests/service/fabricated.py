@@ -8,7 +8,8 @@ from collections.abc import Mapping, Sequence
 from missions.export.formats import dumps, mission_json
 from missions.export.items import DroneMission
 from missions.export.parameter_file import parameter_file_text
-from missions.task.directory import DRONES, mission_file
+from missions.task.directory import mission_file
+from missions.task.documents import DRONES
 from service.deps import ServiceState
 from service.storage import TaskStatus
 

@@ -19,7 +19,7 @@ from flycrane.errors import InputError
 from flycrane.planning.planners import PlannerOptions
 from missions.options import MAX_MISSION_DURATION_S, MissionOptions
 from missions.task.build import UnflyablePath, build
-from missions.task.directory import raised_clearance
+from missions.task.documents import raised_clearance
 from missions.task.limits import Cancelled, MissionFailure, PhaseLimits
 from missions.task.pipeline import run_task
 from missions.task.resolve import resolve_task
