@@ -21,7 +21,7 @@ import numpy as np
 from pydantic import TypeAdapter, ValidationError
 
 from flycrane.errors import FieldProblem, FlyCraneError, InputError
-from flycrane.execution import scheduler_address
+from flycrane.execution import MAX_WORKERS, scheduler_address
 from flycrane.model.cable_system import CableSystem
 from flycrane.model.cost import CostForm
 from flycrane.model.kinematics import as_configurations
@@ -300,7 +300,9 @@ def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
         type=_positive(float, MAX_LENGTH),
         help=f"extension step (default: planner default; at most {MAX_LENGTH:g})",
     )
-    bench.add_argument("--workers", type=_positive(int), help="processes (default: all CPUs)")
+    bench.add_argument(
+        "--workers", type=_positive(int, MAX_WORKERS), help="processes (default: all CPUs)"
+    )
     bench.add_argument(
         "--cluster",
         type=_scheduler,

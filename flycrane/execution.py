@@ -30,6 +30,8 @@ import time
 from concurrent.futures import Executor, ProcessPoolExecutor
 from typing import Any
 
+#: Most worker processes of a local pool: each is a process with its own compiled kernels.
+MAX_WORKERS = 256
 #: How often a worker without pidfd support looks at its parent's pid [s].
 PARENT_POLL_INTERVAL = 0.5
 

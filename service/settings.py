@@ -21,7 +21,8 @@ from pydantic_settings import BaseSettings, SettingsConfigDict
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError, NoSuchModuleError
 
-from flycrane.execution import scheduler_address
+from flycrane.execution import MAX_WORKERS, scheduler_address
+from flycrane.quantities import MAX_TIME_BUDGET
 
 #: Networks vehicles may be reached on by default: this machine only.
 DEFAULT_UPLOAD_NETWORKS = (IPv4Network("127.0.0.0/8"),)
@@ -60,7 +61,7 @@ class Settings(BaseSettings):
         le=60,
         description="how long a request waits for a locked database before 503 [s]",
     )
-    workers: int = Field(1, ge=1, le=256, description="planning worker processes")
+    workers: int = Field(1, ge=1, le=MAX_WORKERS, description="planning worker processes")
     executor: str = Field(
         "local",
         description="where tasks run: 'local' (a pool of `workers` processes) or a Dask "
@@ -73,7 +74,10 @@ class Settings(BaseSettings):
     )
     max_request_bytes: int = Field(1_000_000, ge=1024, description="largest request body")
     max_time_budget: float = Field(
-        600.0, gt=0, description="largest planner time budget and improve time [s]"
+        600.0,
+        gt=0,
+        le=MAX_TIME_BUDGET,
+        description="largest planner time budget and improve time [s]",
     )
     api_token: SecretStr | None = Field(
         None,

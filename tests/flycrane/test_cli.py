@@ -95,8 +95,9 @@ def test_a_configuration_beyond_the_schemas_bounds_is_refused(capsys):
     [("--runs", "0"), ("--runs", "100000000"), ("--budget", "-1"), ("--budget", "inf"),
      ("--budget", "nan"), ("--step", "-0.1"), ("--step", "0"), ("--workers", "0"),
      ("--step", "20000"), ("--step", "1e300"),
-     ("--workers", "two"), ("--cluster", "garbage"), ("--cluster", "tcp://host"),
-     ("--cluster", "dask://host:0")],
+     ("--workers", "two"), ("--workers", "1000"), ("--cluster", "garbage"),
+     ("--cluster", "tcp://host"), ("--cluster", "dask://host:0"),
+     ("--cluster", "tls://host:8786")],
 )  # fmt: skip
 def test_a_bad_bench_setting_is_refused_before_any_run(option, value, tmp_path, capsys):
     """argparse exits 2 naming the option; nothing is planned or written."""

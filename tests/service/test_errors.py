@@ -176,6 +176,8 @@ def test_an_empty_or_weak_token_is_refused_not_ignored(tmp_path, settings, field
         ({"allowed_hosts": ()}, "allowed_hosts\n  Value error, no host"),
         ({"database_url": "sqlite://"}, "database_url\n  Value error, an in-memory"),
         ({"database_url": "sqlite:///:memory:"}, "database_url\n  Value error, an in-memory"),
+        ({"max_time_budget": float("inf")}, "max_time_budget\n  Input should be less than"),
+        ({"workers": 257}, "workers\n  Input should be less than or equal to 256"),
     ],
 )
 def test_settings_a_server_could_not_work_with_are_refused(settings, reason):
