@@ -152,9 +152,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         # the runs not started are dropped, the running ones end with this process (their
         # workers exit with it), and those that finished are kept
         executor.shutdown(wait=False, cancel_futures=True)
-        records.sort(
-            key=lambda r: (args.scenes.index(r.scene), args.planners.index(r.planner), r.seed)
-        )
+        records.sort(key=order)
         write_results(records, summarize(records), out)
         print(f"interrupted: the {len(records)} of {total} runs that finished are in {out}",
               file=sys.stderr)  # fmt: skip
