@@ -122,7 +122,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         write_results,
     )
     from flycrane.analysis.profiles import least_margins, path_profile, plot_profile_bands
-    from flycrane.execution import executor_for
+    from flycrane.execution import executor_for, stop_executor
     from flycrane.planning.planners import PlannerOptions
     from flycrane.planning.problem import PlanningProblem
 
@@ -149,9 +149,9 @@ def _cmd_bench(args: argparse.Namespace) -> int:
                 flush=True,
             )
     except KeyboardInterrupt:
-        # the runs not started are dropped, the running ones end with this process (their
-        # workers exit with it), and those that finished are kept
-        executor.shutdown(wait=False, cancel_futures=True)
+        # the runs not started are dropped, the running ones stopped (their workers
+        # killed), and those that finished are kept
+        stop_executor(executor)
         records.sort(key=order)
         write_results(records, summarize(records), out)
         print(f"interrupted: the {len(records)} of {total} runs that finished are in {out}",
