@@ -39,9 +39,9 @@ def _cmd_view(args: argparse.Namespace) -> int:
             if not _same_plan(flown_task, task_dir):
                 raise InputError([FieldProblem("--flight", (
                     f"{flight} is a flight of {flown_task}, not of {task_dir}"))])  # fmt: skip
-    out = Path(args.out) if args.out is not None else task_dir / PAGE_FILE
-    if not str(args.out if args.out is not None else out).strip():
+    if args.out is not None and not args.out.strip():
         raise InputError([FieldProblem("--out", "must name a file")])
+    out = task_dir / PAGE_FILE if args.out is None else Path(args.out)
     task = TaskDirectory(task_dir).task()
     document = view_document(task, task_dir, base_dir=task_dir, flown_dir=flight)
     out.write_text(standalone_page(document), encoding="utf-8")
